@@ -1,0 +1,4 @@
+"""``python -m sumo_rss`` → the ``sumo-rss`` command line."""
+from .cli import main
+
+raise SystemExit(main())

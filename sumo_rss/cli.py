@@ -1,0 +1,178 @@
+"""The ``sumo-rss`` command line: run, batch, nets.
+
+Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
+``--debug`` shows the traceback instead.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import SumoRssError
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+_RUN_EXAMPLES = """examples:
+  sumo-rss run scenarios/highway_dense.toml
+  sumo-rss run scenarios/merge_onramp.toml --seed 3 --duration 60 --out results/ --fcd
+"""
+_BATCH_EXAMPLES = """examples:
+  sumo-rss batch scenarios/default.toml
+  sumo-rss batch scenarios/default.toml --seeds 0:5 --out results/sweep
+  sumo-rss batch scenarios/default.toml --seeds 1,7,42
+"""
+_NETS_EXAMPLES = """examples:
+  sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
+  sumo-rss nets check          # rebuild into a temporary folder and compare with the committed nets
+"""
+
+
+def _parse_seeds(text: str) -> list[int]:
+    """``A:B`` (A included, B excluded) or a comma list ``1,4,9``."""
+    try:
+        if ":" in text:
+            lo, hi = (int(part) for part in text.split(":", 1))
+            seeds = list(range(lo, hi))
+        else:
+            seeds = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A:B or a comma list of integers, got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise argparse.ArgumentTypeError(f"expected at least one seed >= 0, got {text!r}")
+    return seeds
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    if not text.isdigit():
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return int(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    # --debug is accepted before or after the command; SUPPRESS keeps a sub-command from resetting it.
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks for errors")
+    parser = argparse.ArgumentParser(
+        prog="sumo-rss",
+        description="Responsibility-aware traffic simulation: SUMO co-simulation with an RSS auditor.",
+        epilog="Run 'sumo-rss COMMAND --help' for the options and examples of a command.")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks for errors")
+    parser.add_argument("--version", action="version", version=f"sumo-rss {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", parents=[common], help="co-simulate one scenario with one seed",
+                         description="Co-simulate one scenario and write its run directory "
+                                     "OUT/<scenario>/<seed>/ (resolved scenario.toml, summary.json, SUMO logs).",
+                         epilog=_RUN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    run.add_argument("scenario", type=Path, help="scenario TOML file")
+    run.add_argument("--seed", type=_non_negative_int, help="random seed (default: the scenario's)")
+    run.add_argument("--duration", type=_positive_float, metavar="S", help="simulated seconds (default: the scenario's)")
+    run.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
+    run.add_argument("--fcd", action="store_true",
+                     help="also write SUMO's FCD trace (fcd.xml) with accelerations and lateral position/speed")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    batch = sub.add_parser("batch", parents=[common], help="run scenarios x seeds from a batch file",
+                           description="Run every scenario of a batch file with every seed, one after another. "
+                                       "Finished runs are skipped when the batch is run again; a failing run is "
+                                       "recorded (<seed>.failed/failed.json) and the batch goes on.",
+                           epilog=_BATCH_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    batch.add_argument("batch_file", type=Path, help="batch TOML file with a [batch] table")
+    batch.add_argument("--seeds", type=_parse_seeds, help="A:B (B excluded) or 1,2,3 (default: the file's)")
+    batch.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
+    batch.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
+                          description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
+                                      "SUMO's netconvert, or check that the committed nets are up to date.",
+                          epilog=_NETS_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    nets.add_argument("action", choices=("build", "check"))
+    nets.add_argument("--root", type=Path, help="networks folder (default: the repository's networks/)")
+    return parser
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .batch.runner import run_directory, run_one
+    from .scenario import load_scenario
+
+    spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration)
+    with tqdm(total=round(spec.duration_s, 3), unit="sim s", disable=args.quiet, file=sys.stderr,
+              bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]") as bar:
+        def on_step(t: float) -> None:
+            bar.n = round(t, 3)
+            if round(t / spec.step_s) % 50 == 0:
+                bar.refresh()
+
+        summary = run_one(spec, args.out, fcd=True if args.fcd else None, on_step=on_step)
+    print(f"{spec.name} seed {spec.seed}: {summary.steps} steps, {summary.vehicles_inserted} vehicles "
+          f"(peak {summary.peak_vehicles}), {summary.collisions} collisions, {summary.teleports} teleports, "
+          f"{summary.real_time_factor:.0f}x real time -> {run_directory(args.out, spec)}")
+    return 0
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .batch.plan import load_batch, run_batch
+
+    batch = load_batch(args.batch_file)
+    if args.seeds is not None:
+        batch = replace(batch, seeds=tuple(args.seeds))
+    rows = run_batch(batch, args.out, progress=not args.quiet)
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"{len(rows) - len(failed)} runs ok, {len(failed)} failed -> {args.out / 'batch_summary.csv'}")
+    return 1 if failed else 0
+
+
+def _cmd_nets(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from .road.build import build_network, network_dirs, without_generator_header
+    from .scenario import networks_root
+
+    root = args.root or networks_root()
+    dirs = network_dirs(root)
+    if not dirs:
+        raise SumoRssError(f"{root}: no networks found (expected <name>/<name>.netccfg)")
+    stale = []
+    for d in dirs:
+        if args.action == "build":
+            print(f"built {build_network(d)}")
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            fresh = build_network(d, Path(tmp) / "check.net.xml").read_text(encoding="utf-8")
+        committed = (d / f"{d.name}.net.xml").read_text(encoding="utf-8")
+        same = without_generator_header(fresh) == without_generator_header(committed)
+        print(f"{d.name}: {'up to date' if same else 'STALE (run: sumo-rss nets build)'}")
+        stale += [] if same else [d.name]
+    return 1 if stale else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    handler = {"run": _cmd_run, "batch": _cmd_batch, "nets": _cmd_nets}[args.command]
+    try:
+        return handler(args)
+    except SumoRssError as exc:
+        if args.debug:
+            raise
+        print(f"sumo-rss: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("sumo-rss: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

@@ -1,0 +1,439 @@
+"""Scenario files (TOML) → validated :class:`ScenarioSpec` records.
+
+Every key is documented in ``docs/scenarios.md``. The whole file is validated once, here: unknown keys, wrong
+types, out-of-range values, missing files and unknown networks or presets raise :class:`ScenarioError` naming
+the file, the dotted key path and the expected form.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from .errors import ScenarioError
+from .road.topology import NetTopology, read_topology
+from .sumo_home import vtype_attribute_names
+from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
+from .validation import TableReader, one_of
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+CAR_FOLLOW_MODELS = ("Krauss", "KraussPS", "KraussOrig1", "IDM", "EIDM", "ACC", "CACC", "W99", "Wiedemann")
+# SL2015 needs SUMO's sublane model, which this project does not use (see docs/scenarios.md).
+LANE_CHANGE_MODELS = ("LC2013",)
+VEHICLE_CLASSES = ("passenger", "truck", "trailer", "bus", "coach", "delivery", "motorcycle", "emergency")
+DEPART_LANES = ("best", "random", "free", "allowed", "first")
+DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
+CONTROLLERS = ("sumo", "epsilon")
+
+
+def networks_root() -> Path:
+    """Folder holding ``<name>/<name>.net.xml``: ``$SUMO_RSS_NETWORKS`` or the repository's ``networks/``."""
+    env = os.environ.get("SUMO_RSS_NETWORKS")
+    return Path(env) if env else Path(__file__).resolve().parent.parent / "networks"
+
+
+def available_networks() -> list[str]:
+    root = networks_root()
+    return sorted(p.name for p in root.iterdir() if (p / f"{p.name}.net.xml").is_file()) if root.is_dir() else []
+
+
+@dataclass(frozen=True)
+class VehicleTypeSpec:
+    """A SUMO vType. Lengths in m, speeds in m/s, accelerations in m/s², times in s."""
+
+    id: str
+    probability: float = 1.0  # share within the background distribution (normalised by SUMO)
+    vclass: str = "passenger"
+    length: float = 5.0
+    width: float = 1.8
+    min_gap: float = 2.5
+    accel: float = 2.6
+    decel: float = 4.5
+    emergency_decel: float = 9.0
+    sigma: float = 0.5  # driver imperfection in [0, 1]
+    tau: float = 1.0  # desired time headway / reaction time
+    max_speed: float = 55.56
+    speed_factor: float = 1.0  # mean of the normal distribution of the speed factor
+    speed_dev: float = 0.1  # its standard deviation
+    car_follow_model: str = "Krauss"
+    lane_change_model: str = "LC2013"
+    car_follow_params: dict[str, float] = field(default_factory=dict)
+    lane_change_params: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FlowSpec:
+    """Background traffic on one route: ``veh_per_hour`` (evenly spaced) or ``probability`` per second."""
+
+    id: str
+    route: tuple[str, ...]
+    veh_per_hour: float | None
+    probability: float | None
+    begin_s: float
+    end_s: float
+    depart_lane: str  # a lane index as a string, or one of DEPART_LANES
+    depart_speed: str | float  # [m/s], or one of DEPART_SPEEDS
+    vtype: str | None  # None: the background vType distribution
+
+
+@dataclass(frozen=True)
+class DemandSpec:
+    vtypes: tuple[VehicleTypeSpec, ...]
+    flows: tuple[FlowSpec, ...]
+
+
+@dataclass(frozen=True)
+class PlannerOverrides:
+    """EPSILON settings a scenario may change (epsilon.md, 'Decisions for our port')."""
+
+    replan_every: int = 1  # plan every N SUMO steps
+    layers: int = 5  # DCP-tree depth
+    layer_duration_s: float = 1.0
+    sim_step_s: float = 0.2  # forward-simulation step
+    scenarios_k: int = 4  # CFB: most likely intention combinations kept
+    rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
+
+
+@dataclass(frozen=True)
+class EgoSpec:
+    id: str
+    route: tuple[str, ...]
+    depart_s: float
+    depart_lane: str  # an index as a string, or one of DEPART_LANES
+    depart_pos_m: float
+    depart_speed: float
+    desired_speed: float
+    controller: str
+    vehicle: VehicleTypeSpec
+    planner: PlannerOverrides
+
+
+@dataclass(frozen=True)
+class SumoSpec:
+    lanechange_duration_s: float = 3.0
+    time_to_teleport_s: float = 300.0  # 0 disables teleporting
+    collision_mingap_factor: float = 0.0  # 0: a collision is a physical overlap
+    extra_args: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RssSpec:
+    preset: str = "ad_rss"
+    role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
+    vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class OutputsSpec:
+    fcd: bool = False  # SUMO FCD file with accelerations and lateral position/speed
+    collisions_xml: bool = True  # SUMO's collision-output file
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    name: str
+    source: Path
+    network: str
+    net_file: Path
+    duration_s: float
+    step_s: float
+    seed: int
+    sumo: SumoSpec
+    demand: DemandSpec
+    ego: EgoSpec | None
+    rss: RssSpec
+    outputs: OutputsSpec
+
+    def with_overrides(self, *, seed: int | None = None, duration_s: float | None = None) -> ScenarioSpec:
+        spec = self
+        if seed is not None:
+            if seed < 0:
+                raise ScenarioError(self.source, "seed", "expected an integer >= 0", seed)
+            spec = replace(spec, seed=seed)
+        if duration_s is not None:
+            if duration_s <= 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
+                lower = f"ego.depart_s ({self.ego.depart_s:g})" if self.ego is not None else "0"
+                raise ScenarioError(self.source, "duration_s", f"expected a number > {lower}", duration_s)
+            spec = replace(spec, duration_s=float(duration_s))
+        return spec
+
+    def to_toml_data(self) -> dict[str, Any]:
+        """The resolved scenario in the scenario-file schema, every default filled in; loading it again
+        gives an equal spec (the network is written as an absolute path)."""
+        def vtype(vt: VehicleTypeSpec, *, probability: bool) -> dict[str, Any]:
+            d = _plain(asdict(vt))
+            del d["id"]
+            if not probability:
+                del d["probability"]
+            return d
+
+        def lane(value: str) -> str | int:
+            return int(value) if value.isdigit() else value
+
+        data: dict[str, Any] = {
+            "name": self.name, "network": str(self.net_file), "duration_s": self.duration_s,
+            "step_s": self.step_s, "seed": self.seed, "sumo": _plain(asdict(self.sumo)),
+            "demand": {"vtypes": {vt.id: vtype(vt, probability=True) for vt in self.demand.vtypes},
+                       "flows": [{**_plain(asdict(f)), "depart_lane": lane(f.depart_lane)}
+                                 for f in self.demand.flows]},
+            "rss": {"preset": self.rss.preset, **self.rss.role_overrides, "vtypes": dict(self.rss.vtype_overrides)},
+            "outputs": _plain(asdict(self.outputs)),
+        }
+        if self.ego is not None:
+            ego = _plain(asdict(self.ego))
+            ego.update(depart_lane=lane(self.ego.depart_lane), vehicle=vtype(self.ego.vehicle, probability=False))
+            data["ego"] = ego
+        return data
+
+
+def _plain(value: Any) -> Any:
+    """Dataclass data → TOML-ready data: tuples become lists, paths strings, None values are dropped."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+# ---------------------------------------------------------------------------------------------------------
+def load_scenario(path: str | Path) -> ScenarioSpec:
+    """Read and validate a scenario file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(path, "", "scenario file not found", has_got=False)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(path, "", "not a UTF-8 text file", has_got=False) from exc
+    return parse_scenario(data, path)
+
+
+def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
+    top = TableReader(data, path)
+    name = top.string("name", path.stem)
+    network, net_file = _read_network(top, path)
+    topology = _topology(top, net_file)
+    duration = top.number("duration_s", min=0.0, max=7 * 86400.0, min_exclusive=True)
+    step = top.number("step_s", 0.1, min=0.001, max=1.0)
+    seed = top.integer("seed", 0, min=0, max=2**31 - 1)
+    sumo = _read_sumo(top.table("sumo"))
+    demand = _read_demand(top.table("demand"), topology, duration)
+    ego = _read_ego(top.table("ego"), topology, duration) if top.has("ego") else None
+    rss = _read_rss(top.table("rss"), demand, ego)
+    outputs_t = top.table("outputs")
+    outputs = OutputsSpec(fcd=outputs_t.boolean("fcd", False), collisions_xml=outputs_t.boolean("collisions_xml", True))
+    outputs_t.finish()
+    top.finish()
+    return ScenarioSpec(name, path, network, net_file, duration, step, seed, sumo, demand, ego, rss, outputs)
+
+
+def _read_network(top: TableReader, path: Path) -> tuple[str, Path]:
+    value = top.string("network")
+    if value.endswith(".net.xml"):
+        net_file = (path.parent / value).resolve()
+        if not net_file.is_file():
+            raise top.error("network", f"expected an existing .net.xml file (looked for {net_file})", value)
+        return net_file.name[: -len(".net.xml")], net_file
+    net_file = networks_root() / value / f"{value}.net.xml"
+    if not net_file.is_file():
+        names = ", ".join(available_networks()) or f"none found under {networks_root()}"
+        raise top.error("network", f"expected a network name ({names}) or a path to a .net.xml", value)
+    return value, net_file
+
+
+def _topology(top: TableReader, net_file: Path) -> NetTopology:
+    try:
+        return read_topology(net_file)
+    except ValueError as exc:
+        raise top.error("network", str(exc)) from exc
+
+
+def _read_sumo(t: TableReader) -> SumoSpec:
+    spec = SumoSpec(
+        lanechange_duration_s=t.number("lanechange_duration_s", 3.0, min=0.0, max=20.0, min_exclusive=True),
+        time_to_teleport_s=t.number("time_to_teleport_s", 300.0, min=0.0),
+        collision_mingap_factor=t.number("collision_mingap_factor", 0.0, min=0.0, max=1.0),
+        extra_args=t.string_list("extra_args", [], min_len=0),
+    )
+    t.finish()
+    return spec
+
+
+def _read_vtype(t: TableReader, vtype_id: str, *, with_probability: bool) -> VehicleTypeSpec:
+    d = VehicleTypeSpec(vtype_id)
+    spec = VehicleTypeSpec(
+        id=vtype_id,
+        probability=t.number("probability", d.probability, min=0.0, min_exclusive=True) if with_probability else 1.0,
+        vclass=t.string("vclass", d.vclass, choices=VEHICLE_CLASSES),
+        length=t.number("length", d.length, min=0.5, max=30.0),
+        width=t.number("width", d.width, min=0.3, max=4.0),
+        min_gap=t.number("min_gap", d.min_gap, min=0.0, max=20.0),
+        accel=t.number("accel", d.accel, min=0.0, max=15.0, min_exclusive=True),
+        decel=t.number("decel", d.decel, min=0.0, max=15.0, min_exclusive=True),
+        emergency_decel=t.number("emergency_decel", d.emergency_decel, min=0.0, max=20.0, min_exclusive=True),
+        sigma=t.number("sigma", d.sigma, min=0.0, max=1.0),
+        tau=t.number("tau", d.tau, min=0.0, max=10.0, min_exclusive=True),
+        max_speed=t.number("max_speed", d.max_speed, min=0.0, max=100.0, min_exclusive=True),
+        speed_factor=t.number("speed_factor", d.speed_factor, min=0.0, max=3.0, min_exclusive=True),
+        speed_dev=t.number("speed_dev", d.speed_dev, min=0.0, max=1.0),
+        car_follow_model=t.string("car_follow_model", d.car_follow_model, choices=CAR_FOLLOW_MODELS),
+        lane_change_model=t.string("lane_change_model", d.lane_change_model, choices=LANE_CHANGE_MODELS),
+        car_follow_params=_model_params(t, "car_follow_params", lane_change=False),
+        lane_change_params=_model_params(t, "lane_change_params", lane_change=True),
+    )
+    if spec.emergency_decel < spec.decel:
+        raise t.error("emergency_decel", f"expected a number >= decel ({spec.decel:g})", spec.emergency_decel)
+    t.finish()
+    return spec
+
+
+# vType attributes that have their own scenario keys (or are set by sumo_rss) and so are not model params.
+_OWN_VTYPE_ATTRIBUTES = frozenset({
+    "id", "refId", "probability", "vClass", "length", "width", "minGap", "accel", "decel", "emergencyDecel",
+    "sigma", "tau", "maxSpeed", "speedFactor", "speedDev", "carFollowModel", "laneChangeModel"})
+
+
+def _model_params(t: TableReader, key: str, *, lane_change: bool) -> dict[str, float]:
+    """Extra car-following / lane-change attributes, checked against SUMO's own vType schema."""
+    params = t.number_table(key)
+    allowed = sorted(name for name in vtype_attribute_names() - _OWN_VTYPE_ATTRIBUTES
+                     if name.startswith("lc") == lane_change)
+    for name in params:
+        if name not in allowed:
+            kind = "lane-change (lc...)" if lane_change else "car-following"
+            raise ScenarioError(t.file, f"{t.key_path(key)}.{name}",
+                                f"expected a SUMO {kind} vType attribute such as {', '.join(allowed[:6])}, ...",
+                                name)
+    return params
+
+
+def _read_route(t: TableReader, topology: NetTopology) -> tuple[str, ...]:
+    route = t.string_list("route")
+    for i, edge in enumerate(route):
+        if edge not in topology.edges:
+            raise t.error(f"route[{i}]", "expected an edge of the network", edge)
+        if i and not topology.connected(route[i - 1], edge):
+            raise t.error(f"route[{i}]", f"expected an edge reachable from {route[i - 1]!r}", edge)
+    return route
+
+
+def _read_depart_lane(t: TableReader, first_edge: str, topology: NetTopology) -> str:
+    value = t.raw("depart_lane", "best")
+    lanes = topology.edges[first_edge].num_lanes
+    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < lanes:
+        return str(value)
+    if isinstance(value, str) and value in DEPART_LANES:
+        return value
+    raise t.error("depart_lane", f"expected a lane index 0..{lanes - 1} of {first_edge!r} or one of "
+                                 f"{', '.join(repr(v) for v in DEPART_LANES)}", value)
+
+
+def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> DemandSpec:
+    vtypes = tuple(_read_vtype(r, name, with_probability=True) for name, r in t.named_tables("vtypes").items())
+    if not vtypes:
+        vtypes = (VehicleTypeSpec("car"),)
+    names = {v.id for v in vtypes}
+    flows = []
+    for i, f in enumerate(t.table_list("flows")):
+        route = _read_route(f, topology)
+        kind = one_of(f, ("veh_per_hour", "probability"))
+        begin = f.number("begin_s", 0.0, min=0.0)
+        end = f.number("end_s", duration, min=0.0)
+        if end <= begin:
+            raise f.error("end_s", f"expected a number > begin_s ({begin:g})", end)
+        speed = f.raw("depart_speed", "desired")
+        if not (speed in DEPART_SPEEDS or (isinstance(speed, (int, float)) and not isinstance(speed, bool)
+                                           and 0 <= speed <= 100)):
+            raise f.error("depart_speed", f"expected a speed in [0, 100] m/s or one of "
+                                          f"{', '.join(repr(v) for v in DEPART_SPEEDS)}", speed)
+        vtype = f.string("vtype", None, choices=sorted(names)) if f.has("vtype") else None
+        flows.append(FlowSpec(
+            id=f.string("id", f"flow{i}"), route=route,
+            veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
+            if kind == "veh_per_hour" else None,
+            probability=f.number("probability", min=0.0, max=1.0, min_exclusive=True)
+            if kind == "probability" else None,
+            begin_s=begin, end_s=end, depart_lane=_read_depart_lane(f, route[0], topology),
+            depart_speed=speed if isinstance(speed, str) else float(speed), vtype=vtype))
+        f.finish()
+    ids = [fl.id for fl in flows]
+    if len(set(ids)) != len(ids):
+        raise t.error("flows", "expected unique flow ids", ids)
+    t.finish()
+    return DemandSpec(vtypes, tuple(flows))
+
+
+def _read_planner(t: TableReader) -> PlannerOverrides:
+    d = PlannerOverrides()
+    spec = PlannerOverrides(
+        replan_every=t.integer("replan_every", d.replan_every, min=1, max=100),
+        layers=t.integer("layers", d.layers, min=1, max=10),
+        layer_duration_s=t.number("layer_duration_s", d.layer_duration_s, min=0.1, max=5.0),
+        sim_step_s=t.number("sim_step_s", d.sim_step_s, min=0.01, max=1.0),
+        scenarios_k=t.integer("scenarios_k", d.scenarios_k, min=1, max=64),
+        rss_preset=t.string("rss_preset", None, choices=PRESETS) if t.has("rss_preset") else None,
+    )
+    t.finish()
+    return spec
+
+
+def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec:
+    route = _read_route(t, topology)
+    first = topology.edges[route[0]]
+    depart_s = t.number("depart_s", 0.0, min=0.0)
+    if depart_s >= duration:
+        raise t.error("depart_s", f"expected a time before the end of the run (duration_s = {duration:g})",
+                      depart_s)
+    spec = EgoSpec(
+        id=t.string("id", "ego"), route=route, depart_s=depart_s,
+        depart_lane=_read_depart_lane(t, route[0], topology),
+        depart_pos_m=t.number("depart_pos_m", 0.0, min=0.0, max=first.length),
+        depart_speed=t.number("depart_speed", 0.0, min=0.0, max=100.0),
+        desired_speed=t.number("desired_speed", min=0.0, max=100.0, min_exclusive=True),
+        controller=t.string("controller", "sumo", choices=CONTROLLERS),
+        vehicle=_read_vtype(t.table("vehicle"), "ego", with_probability=False),
+        planner=_read_planner(t.table("planner")),
+    )
+    t.finish()
+    return spec
+
+
+def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
+    preset = t.string("preset", "ad_rss", choices=PRESETS)
+    roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
+    vtype_ids = {v.id for v in demand.vtypes}
+    by_vtype = {}
+    for name, r in t.named_tables("vtypes").items():
+        if name not in vtype_ids:
+            raise t.error(f"vtypes.{name}", f"expected a vType of demand.vtypes ({', '.join(sorted(vtype_ids))})",
+                          name)
+        by_vtype[name] = _read_param_overrides(r)
+    t.finish()
+    spec = RssSpec(preset, roles, by_vtype)
+    # Resolve every class once so that inconsistent overrides fail here, at load time.
+    checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
+    for role, vtype_id, vt in checks:
+        try:
+            resolve_params(preset, role, vtype_id, role_overrides=roles, vtype_overrides=by_vtype,
+                           tau=vt.tau, decel=vt.decel)
+        except ValueError as exc:
+            key = f"vtypes.{vtype_id}" if vtype_id in by_vtype else role
+            who = f"{role} vType {vtype_id!r}" if vtype_id else role
+            raise t.error(key, f"inconsistent RSS parameters for {who} (preset {preset!r}): {exc}") from exc
+    return spec
+
+
+def _read_param_overrides(t: TableReader) -> dict[str, float]:
+    out = {name: t.number(name) for name in PARAM_NAMES if t.has(name)}
+    t.finish()
+    return out

@@ -1,0 +1,252 @@
+"""Session: one libsumo co-simulation of a scenario, stepped by the caller.
+
+libsumo runs SUMO inside this process and is a process-wide singleton, so only one Session may be open
+per process at a time; a second one is refused with :class:`SessionError`. A session is always closed,
+also when the code using it raises (use it as a context manager).
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import libsumo
+import numpy as np
+from libsumo import constants as tc
+
+from ..errors import SessionError
+from ..scenario import ScenarioSpec
+from ..trajectory import Trajectory
+from . import ego as ego_actuation
+from .demand import write_route_file
+from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+
+FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals"
+FCD_PRECISION = 6  # decimals in SUMO outputs written by a session (FCD, collisions)
+
+_VARS = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_SPEED_LAT, tc.VAR_LANE_ID,
+         tc.VAR_ROAD_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT, tc.VAR_SIGNALS,
+         tc.VAR_ROUTE_INDEX)
+
+_active: Session | None = None
+
+
+@dataclass(frozen=True)
+class CollisionEvent:
+    """A collision as SUMO reports it, once per contact (not every step it lasts)."""
+
+    time: float  # [s]
+    collider: str
+    victim: str
+    collider_type: str
+    victim_type: str
+    collider_speed: float  # [m/s]
+    victim_speed: float  # [m/s]
+    kind: str  # SUMO's collision type: 'collision', 'frontal', 'junction', ...
+    lane: str
+    pos: float  # [m] along ``lane``
+
+
+@dataclass(frozen=True)
+class _Static:
+    """What does not change while a vehicle is on the road."""
+
+    length: float
+    width: float
+    vtype: str
+    vclass: str
+    route: tuple[str, ...]
+
+
+def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | None = None,
+                   collision_file: Path | None = None, log_file: Path | None = None) -> list[str]:
+    """The SUMO command line of a session (also written to the run directory for reproduction)."""
+    s = spec.sumo
+    args = [
+        "sumo", "--net-file", str(spec.net_file), "--route-files", str(route_file),
+        "--begin", "0", "--step-length", f"{spec.step_s:g}", "--seed", str(spec.seed),
+        "--lanechange.duration", f"{s.lanechange_duration_s:g}",
+        "--collision.action", "warn", "--collision.check-junctions", "true",
+        "--collision.mingap-factor", f"{s.collision_mingap_factor:g}",
+        "--time-to-teleport", f"{s.time_to_teleport_s:g}" if s.time_to_teleport_s > 0 else "-1",
+        "--no-step-log", "true", "--duration-log.disable", "true", "--precision", str(FCD_PRECISION),
+    ]
+    if log_file is not None:
+        args += ["--error-log", str(log_file)]
+    else:
+        args += ["--no-warnings", "true"]
+    if fcd_file is not None:
+        args += ["--fcd-output", str(fcd_file), "--fcd-output.attributes", FCD_ATTRIBUTES]
+    if collision_file is not None:
+        args += ["--collision-output", str(collision_file)]
+    return args + list(s.extra_args)
+
+
+class Session:
+    """A running co-simulation. ``step()`` advances by ``spec.step_s`` and returns the new snapshot.
+
+    With ``run_dir`` the route file, SUMO's log and the requested SUMO outputs are written there; without it
+    they go to a temporary folder removed on close.
+    """
+
+    def __init__(self, spec: ScenarioSpec, run_dir: Path | None = None, *, fcd: bool | None = None):
+        self.spec = spec
+        self.run_dir = Path(run_dir) if run_dir is not None else None
+        self.write_fcd = spec.outputs.fcd if fcd is None else fcd
+        self.ego_id = spec.ego.id if spec.ego is not None else None
+        self.collisions: list[CollisionEvent] = []
+        self.teleports = 0
+        self.vehicles_inserted = 0
+        self.peak_vehicles = 0
+        self.steps = 0
+        self.snapshot: WorldSnapshot | None = None
+        self._static: dict[str, _Static] = {}
+        self._touching: set[tuple[str, str]] = set()
+        self._ego_controlled = False
+        self._tmp: str | None = None
+        self._open = False
+
+    # -- lifecycle -----------------------------------------------------------------------------------------
+    def __enter__(self) -> Session:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def start(self) -> None:
+        global _active
+        if _active is not None:
+            raise SessionError("another Session is already open in this process; libsumo allows one "
+                               "simulation per process: close it first or run in a separate process")
+        out = self.run_dir
+        if out is None:
+            self._tmp = tempfile.mkdtemp(prefix="sumo_rss_")
+            out = Path(self._tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        write_route_file(self.spec, out / "routes.rou.xml")
+
+        def arguments(folder: Path) -> list[str]:
+            return sumo_arguments(
+                self.spec, folder / "routes.rou.xml",
+                fcd_file=folder / "fcd.xml" if self.write_fcd else None,
+                collision_file=folder / "collisions.xml" if self.spec.outputs.collisions_xml and self.run_dir
+                else None,
+                log_file=folder / "sumo.log" if self.run_dir else None)
+
+        args = arguments(out)
+        (out / "sumo_command.txt").write_text(
+            "# SUMO command line of this run; run it from this folder to reproduce the run with plain SUMO.\n"
+            + " ".join(arguments(Path("."))) + "\n", encoding="utf-8")
+        _active = self
+        try:
+            libsumo.start(args)
+        except libsumo.TraCIException as exc:
+            self.close()
+            raise SessionError(f"SUMO refused to start scenario {self.spec.source}: {exc}") from exc
+        self._open = True
+
+    def close(self) -> None:
+        """Close SUMO (flushing its output files) and release the process-wide slot; idempotent."""
+        global _active
+        if self._open:
+            self._open = False
+            libsumo.close()
+        if _active is self:
+            _active = None
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None
+
+    # -- stepping ------------------------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Current simulation time [s]."""
+        return self.snapshot.time if self.snapshot is not None else 0.0
+
+    @property
+    def finished(self) -> bool:
+        return self.time >= self.spec.duration_s - 1e-9
+
+    def step(self) -> WorldSnapshot:
+        if not self._open:
+            raise SessionError("the session is not running; use it as 'with Session(spec) as s:'")
+        libsumo.simulationStep()
+        self.steps += 1
+        time = libsumo.simulation.getTime()
+        for vid in libsumo.simulation.getDepartedIDList():
+            self._on_depart(vid)
+        for vid in libsumo.simulation.getArrivedIDList():
+            self._static.pop(vid, None)
+        self.teleports += libsumo.simulation.getStartingTeleportNumber()
+        self._record_collisions(time)
+        self.snapshot = self._build_snapshot(time)
+        self.peak_vehicles = max(self.peak_vehicles, len(self.snapshot))
+        return self.snapshot
+
+    def _on_depart(self, vid: str) -> None:
+        v = libsumo.vehicle
+        v.subscribe(vid, _VARS)
+        self.vehicles_inserted += 1
+        self._static[vid] = _Static(v.getLength(vid), v.getWidth(vid), v.getTypeID(vid),
+                                    EGO_CLASS if vid == self.ego_id else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
+
+    def _record_collisions(self, time: float) -> None:
+        touching = set()
+        for c in libsumo.simulation.getCollisions():
+            pair = (c.collider, c.victim) if c.collider < c.victim else (c.victim, c.collider)
+            if pair not in self._touching and pair not in touching:
+                self.collisions.append(CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType,
+                                                      c.colliderSpeed, c.victimSpeed, c.type, c.lane, c.pos))
+            touching.add(pair)
+        self._touching = touching
+
+    def _build_snapshot(self, time: float) -> WorldSnapshot:
+        results = libsumo.vehicle.getAllSubscriptionResults()
+        ids = [vid for vid, r in results.items() if r[tc.VAR_LANE_ID]]  # '' while teleporting
+        rows = [results[vid] for vid in ids]
+        if self.ego_id in self._static and self._ego_controlled:  # moveToXY may have replaced its route
+            self._static[self.ego_id] = _Static(**{**self._static[self.ego_id].__dict__,
+                                                   "route": tuple(libsumo.vehicle.getRoute(self.ego_id))})
+        static = [self._static[vid] for vid in ids]
+        n = len(ids)
+
+        def col(var: int, dtype: type = float) -> np.ndarray:
+            return np.fromiter((r[var] for r in rows), dtype=dtype, count=n)
+
+        xy = np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2)
+        return WorldSnapshot(
+            time=time, ids=np.array(ids, dtype=str), x=xy[:, 0], y=xy[:, 1],
+            heading=compass_deg_to_heading(col(tc.VAR_ANGLE)), speed=col(tc.VAR_SPEED),
+            accel=col(tc.VAR_ACCELERATION), lat_speed=col(tc.VAR_SPEED_LAT),
+            length=np.fromiter((s.length for s in static), float, n),
+            width=np.fromiter((s.width for s in static), float, n),
+            lane_id=np.array([r[tc.VAR_LANE_ID] for r in rows], dtype=str),
+            edge_id=np.array([r[tc.VAR_ROAD_ID] for r in rows], dtype=str),
+            lane_index=col(tc.VAR_LANE_INDEX, int), lane_pos=col(tc.VAR_LANEPOSITION),
+            lat_pos=col(tc.VAR_LANEPOSITION_LAT),
+            vclass=np.array([s.vclass for s in static], dtype=str),
+            vtype=np.array([s.vtype for s in static], dtype=str),
+            signals=col(tc.VAR_SIGNALS, int), route_index=col(tc.VAR_ROUTE_INDEX, int),
+            route_edges=tuple(s.route for s in static))
+
+    # -- ego -------------------------------------------------------------------------------------------------
+    @property
+    def ego_on_road(self) -> bool:
+        return self.snapshot is not None and self.ego_id is not None and bool(np.any(self.snapshot.ids == self.ego_id))
+
+    def drive_ego(self, trajectory: Trajectory) -> None:
+        """Place the ego at ``trajectory``'s state for the end of the coming step (call before ``step()``).
+
+        The first call hands the ego over from SUMO (speed mode 32, lane-change mode 0); from then on it goes
+        exactly where the trajectory puts it and background traffic reacts to it.
+        """
+        if self.ego_id is None:
+            raise SessionError(f"scenario {self.spec.source} has no [ego]")
+        if not self.ego_on_road:
+            raise SessionError(f"the ego {self.ego_id!r} is not on the road at t = {self.time:.2f} s")
+        if not self._ego_controlled:
+            ego_actuation.take_control(self.ego_id)
+            self._ego_controlled = True
+        ego_actuation.place(self.ego_id, trajectory.state_at(self.time + self.spec.step_s))

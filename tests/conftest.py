@@ -1,0 +1,38 @@
+"""Shared fixtures: paths of the shipped scenarios and a valid scenario to break one field at a time."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIOS = REPO / "scenarios"
+NETWORKS = REPO / "networks"
+SHIPPED_SCENARIOS = sorted(p.stem for p in SCENARIOS.glob("*.toml") if p.stem != "default")
+
+# A small valid scenario on the 3-lane highway (geometry: lanes of 3.5 m; edge hw0 is 900 m long).
+VALID_SCENARIO = {
+    "network": "highway",
+    "duration_s": 30.0,
+    "seed": 1,
+    "demand": {
+        "vtypes": {"car": {"probability": 1.0, "length": 4.5, "width": 1.8}},
+        "flows": [{"id": "main", "route": ["hw0", "hw1", "hw2"], "veh_per_hour": 1200}],
+    },
+    "ego": {"route": ["hw0", "hw1", "hw2"], "depart_s": 1.0, "depart_lane": 1, "depart_pos_m": 50.0,
+            "depart_speed": 20.0, "desired_speed": 30.0},
+    "rss": {"preset": "ad_rss"},
+}
+
+
+@pytest.fixture
+def valid_scenario() -> dict:
+    return copy.deepcopy(VALID_SCENARIO)
+
+
+def write_scenario(folder: Path, data: dict, name: str = "scenario.toml") -> Path:
+    path = folder / name
+    path.write_bytes(tomli_w.dumps(data).encode("utf-8"))
+    return path

@@ -1,0 +1,87 @@
+"""The command line end to end: run directories, resolved scenarios, FCD, batches, help texts."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+
+import pytest
+
+from conftest import REPO, SCENARIOS, SHIPPED_SCENARIOS, write_scenario
+from sumo_rss import load_scenario
+from sumo_rss.cli import main
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
+                          check=False)
+
+
+def test_run_writes_the_run_directory_with_fcd(tmp_path):
+    proc = _cli("run", str(SCENARIOS / "merge_onramp.toml"), "--seed", "3", "--duration", "40", "--out",
+                str(tmp_path), "--fcd", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run_dir = tmp_path / "merge_onramp" / "3"
+    assert str(run_dir) in proc.stdout
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["seed"] == 3 and summary["steps"] == 400 and summary["sim_time_s"] == pytest.approx(40.0)
+    assert summary["vehicles_inserted"] >= 30 and summary["peak_vehicles"] >= 20
+    assert summary["collisions"] == 0 and summary["teleports"] == 0 and summary["real_time_factor"] > 1
+    assert summary["versions"]["sumo"] == "SUMO 1.28.0" and summary["versions"]["rss_model"]
+    # FCD: every step, with accelerations and lateral position/speed of every vehicle.
+    root = ET.parse(run_dir / "fcd.xml").getroot()
+    steps = root.findall("timestep")
+    assert len(steps) == 400
+    vehicle = steps[-1].find("vehicle")
+    assert {"acceleration", "posLat", "speedLat", "lane", "pos", "angle"} <= set(vehicle.attrib)
+    assert not list(tmp_path.glob("merge_onramp/.*"))  # no partial folders left behind
+
+
+def test_resolved_scenario_reloads_to_the_same_spec(tmp_path):
+    assert main(["run", str(SCENARIOS / "intersection_tls.toml"), "--duration", "25", "--out", str(tmp_path),
+                 "--quiet"]) == 0
+    resolved = tmp_path / "intersection_tls" / "0" / "scenario.toml"
+    original = load_scenario(SCENARIOS / "intersection_tls.toml").with_overrides(duration_s=25.0)
+    again = load_scenario(resolved)
+    assert replace(again, source=original.source) == original
+
+
+@pytest.mark.parametrize("name", SHIPPED_SCENARIOS)
+def test_every_shipped_scenario_round_trips(tmp_path, name):
+    spec = load_scenario(SCENARIOS / f"{name}.toml")
+    again = load_scenario(write_scenario(tmp_path, spec.to_toml_data()))
+    assert replace(again, source=spec.source) == spec
+
+
+def test_batch_runs_skips_finished_runs_and_records_failures(tmp_path, valid_scenario):
+    write_scenario(tmp_path, valid_scenario, "good.toml")
+    write_scenario(tmp_path, dict(valid_scenario, sumo={"extra_args": ["--bogus-option", "1"]}), "bad.toml")
+    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["good.toml", "bad.toml"]\nseeds = [0, 1]\n')
+    out = tmp_path / "results"
+    proc = _cli("batch", str(tmp_path / "batch.toml"), "--out", str(out), "--quiet")
+    assert proc.returncode == 1 and "2 runs ok, 2 failed" in proc.stdout
+    rows = (out / "batch_summary.csv").read_text().splitlines()
+    assert rows[0].startswith("scenario,seed,status") and len(rows) == 5
+    assert [r.split(",")[:3] for r in rows[1:]] == [["good", "0", "ok"], ["good", "1", "ok"], ["bad", "0", "failed"],
+                                                    ["bad", "1", "failed"]]
+    failure = json.loads((out / "bad" / "0.failed" / "failed.json").read_text())
+    assert "SessionError" in failure["error"] and "Traceback" in failure["traceback"]
+    assert not (out / "bad" / "0").exists()
+    finished = (out / "good" / "0" / "summary.json").stat().st_mtime_ns
+    again = _cli("batch", str(tmp_path / "batch.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
+    assert "3 runs ok, 3 failed" in again.stdout
+    assert (out / "good" / "0" / "summary.json").stat().st_mtime_ns == finished  # skipped, not rerun
+    assert (out / "good" / "2" / "summary.json").is_file()
+
+
+@pytest.mark.parametrize("command", ["run", "batch", "nets"])
+def test_every_command_has_help_with_examples(command):
+    proc = _cli(command, "--help")
+    assert proc.returncode == 0 and "examples:" in proc.stdout and f"sumo-rss {command}" in proc.stdout
+
+
+def test_version():
+    proc = _cli("--version")
+    assert proc.returncode == 0 and proc.stdout.strip().startswith("sumo-rss 0.")

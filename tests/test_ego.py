@@ -1,0 +1,60 @@
+"""The ego hook: a planner's trajectory is executed exactly by libsumo (moveToXY + setPreviousSpeed)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import write_scenario
+from sumo_rss import SessionError, Trajectory, load_scenario
+from sumo_rss.sim.session import Session
+
+LANE_Y = -5.25  # centre of highway lane 1 (lanes 3.5 m wide, the edge's left border at y = 0) [m]
+SPEED = 25.0  # [m/s]
+
+
+def test_constant_speed_lane_keeping_trajectory_is_followed(valid_scenario, tmp_path):
+    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 600
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with Session(spec) as session:
+        while not session.ego_on_road:
+            session.step()
+        t0 = session.time
+        x0 = float(session.snapshot.x[session.snapshot.index_of("ego")])
+        times = t0 + np.arange(0.0, 12.0, spec.step_s)
+        plan = Trajectory(times, x0 + SPEED * (times - t0), np.full_like(times, LANE_Y), np.zeros_like(times),
+                          np.full_like(times, SPEED), np.zeros_like(times))
+        rows = []
+        for _ in range(100):  # 10 s: 250 m along hw0 (900 m long)
+            session.drive_ego(plan)
+            snap = session.step()
+            rows.append((snap.time, snap.x[snap.index_of("ego")], snap.y[snap.index_of("ego")],
+                         snap.speed[snap.index_of("ego")], snap.heading[snap.index_of("ego")],
+                         snap.lane_id[snap.index_of("ego")], snap.lat_pos[snap.index_of("ego")]))
+    t, x, y, v, heading, lane, lat = map(np.array, zip(*rows))
+    np.testing.assert_allclose(x, x0 + SPEED * (t - t0), atol=1e-6)
+    np.testing.assert_allclose(y, LANE_Y, atol=1e-6)
+    np.testing.assert_allclose(v, SPEED, atol=1e-9)
+    np.testing.assert_allclose(heading, 0.0, atol=1e-9)
+    np.testing.assert_allclose(lat, 0.0, atol=1e-6)
+    assert set(lane) == {"hw0_1"}
+
+
+def test_drive_ego_before_the_ego_departs_is_refused(valid_scenario, tmp_path):
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))  # the ego departs at t = 1 s
+    plan = Trajectory(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2))
+    with Session(spec) as session:
+        session.step()
+        with pytest.raises(SessionError, match="'ego' is not on the road at t = 0.10 s"):
+            session.drive_ego(plan)
+
+
+def test_trajectory_interpolates_and_rejects_bad_input():
+    plan = Trajectory(np.array([0.0, 2.0]), np.array([0.0, 10.0]), np.zeros(2), np.array([3.0, -3.0]),
+                      np.array([5.0, 5.0]), np.zeros(2))
+    state = plan.state_at(1.0)
+    assert state.x == pytest.approx(5.0)
+    assert abs(state.heading) == pytest.approx(np.pi, abs=0.15)  # through ±π, not through 0 (unwrapped)
+    with pytest.raises(ValueError, match="outside the trajectory"):
+        plan.state_at(2.5)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        Trajectory(np.array([0.0, 0.0]), *(np.zeros(2) for _ in range(5)))

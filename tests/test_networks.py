@@ -1,0 +1,83 @@
+"""The shipped networks: rebuilt by netconvert they equal the committed files, and each has the geometry and
+junction logic its scenarios rely on."""
+from __future__ import annotations
+
+import math
+
+import pytest
+import sumolib
+
+from conftest import NETWORKS
+from sumo_rss.road.build import build_network, network_dirs, without_generator_header
+
+NAMES = ["highway", "merge", "intersection_tls", "intersection_priority"]
+
+
+def _net(name: str) -> sumolib.net.Net:
+    return sumolib.net.readNet(str(NETWORKS / name / f"{name}.net.xml"), withInternal=True, withPrograms=True)
+
+
+def test_every_network_is_shipped():
+    assert [d.name for d in network_dirs(NETWORKS)] == sorted(NAMES)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_rebuild_equals_committed_net(tmp_path, name):
+    fresh = build_network(NETWORKS / name, tmp_path / f"{name}.net.xml").read_text(encoding="utf-8")
+    committed = (NETWORKS / name / f"{name}.net.xml").read_text(encoding="utf-8")
+    assert "generated on" in committed[:300]  # the header that is ignored
+    assert without_generator_header(fresh) == without_generator_header(committed)
+
+
+def test_highway_three_lanes_over_two_km_with_one_gentle_curve():
+    net = _net("highway")
+    edges = [net.getEdge(e) for e in ("hw0", "hw1", "hw2")]
+    assert all(e.getLaneNumber() == 3 for e in edges)
+    assert all(abs(lane.getSpeed() - 33.33) < 1e-9 for e in edges for lane in e.getLanes())
+    assert sum(e.getLength() for e in edges) >= 2000.0
+    # Straight, a 25° curve of radius 2000 m (873 m long), straight.
+    def heading(lane_id: str) -> float:
+        (ax, ay), (bx, by) = net.getLane(lane_id).getShape()  # exactly two points: straight
+        return math.degrees(math.atan2(by - ay, bx - ax))
+
+    assert heading("hw2_1") - heading("hw0_1") == pytest.approx(25.0, abs=0.01)
+    assert net.getEdge("hw1").getLength() == pytest.approx(2000.0 * math.radians(25.0), rel=0.01)
+
+
+def test_merge_acceleration_lane_ends_and_ramp_feeds_it():
+    net = _net("merge")
+    merge_edge = net.getEdge("mw_merge")
+    assert merge_edge.getLaneNumber() == 3 and net.getEdge("mw_in").getLaneNumber() == 2
+    assert net.getEdge("mw_out").getLaneNumber() == 2 and net.getEdge("ramp").getLaneNumber() == 1
+    accel_lane = net.getLane("mw_merge_0")
+    assert accel_lane.getLength() >= 200.0
+    assert accel_lane.getOutgoing() == []  # the acceleration lane ends
+    assert [lane.getID() for lane in accel_lane.getIncoming() if not lane.getID().startswith(":")] == ["ramp_0"]
+    assert {c.getToLane().getID() for c in net.getLane("mw_merge_1").getOutgoing()} == {"mw_out_0"}
+
+
+def test_tls_intersection_has_left_turn_lanes_and_protected_and_permissive_phases():
+    net = _net("intersection_tls")
+    for arm in "NESW":
+        edge = net.getEdge(f"{arm}_in")
+        assert edge.getLaneNumber() == 2
+        left_lane = edge.getLane(1)
+        assert {c.getDirection() for c in left_lane.getOutgoing()} == {"l"}
+        assert {c.getDirection() for c in edge.getLane(0).getOutgoing()} == {"s", "r"}
+    tls = net.getTLS("C")
+    (program,) = tls.getPrograms().values()
+    assert program.getType() == "static"
+    states = [p.state for p in program.getPhases()]
+    left_links = [c[2] for c in tls.getConnections() if c[0].getOutgoing() and c[0].getIndex() == 1]
+    assert left_links and len(left_links) == 4
+    assert any(any(s[i] == "G" for i in left_links) for s in states)  # protected left
+    assert any(any(s[i] == "g" for i in left_links) for s in states)  # permissive left
+
+
+def test_priority_intersection_minor_approaches_must_stop():
+    net = _net("intersection_priority")
+    node = net.getNode("J")
+    assert node.getType() == "priority_stop"
+    for edge_id, must_stop in (("N_in", True), ("S_in", True), ("W_in", False), ("E_in", False)):
+        states = {c.getState() for c in net.getEdge(edge_id).getLane(0).getOutgoing()}
+        assert (states == {"s"}) == must_stop, (edge_id, states)

@@ -1,0 +1,117 @@
+"""Bad scenario input: one valid base, one field broken per case; each error names file, key and form."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from conftest import REPO, write_scenario
+from sumo_rss import ScenarioError, load_scenario
+
+
+def _set(data: dict, dotted: str, value: object) -> None:
+    keys = dotted.split(".")
+    for key in keys[:-1]:
+        data = data[int(key)] if isinstance(data, list) else data.setdefault(key, {})
+    data[keys[-1]] = value
+
+
+def _delete(data: dict, dotted: str) -> None:
+    keys = dotted.split(".")
+    for key in keys[:-1]:
+        data = data[key]
+    del data[keys[-1]]
+
+
+# (case name, how to break the valid scenario, expected key path in the message, expected-form fragment)
+BROKEN = [
+    ("unknown top-level key", lambda d: _set(d, "netwrok", "highway"), "netwrok", "unknown key"),
+    ("wrong type", lambda d: _set(d, "duration_s", "long"), "duration_s", "expected a number"),
+    ("out of range step", lambda d: _set(d, "step_s", 5.0), "step_s", "in [0.001, 1]"),
+    ("missing network", lambda d: _delete(d, "network"), "network", "required key is missing"),
+    ("unknown network", lambda d: _set(d, "network", "autobahn"), "network", "expected a network name"),
+    ("missing net file", lambda d: _set(d, "network", "nowhere/x.net.xml"), "network", "existing .net.xml"),
+    ("unknown rss preset", lambda d: _set(d, "rss.preset", "strict"), "rss.preset", "'ad_rss'"),
+    ("unknown rss parameter", lambda d: _set(d, "rss.ego", {"reaction_time": 1.0}), "rss.ego.reaction_time",
+     "unknown key"),
+    ("rss brake ordering", lambda d: _set(d, "rss.background", {"lon_brake_min": 9.0}), "rss.background",
+     "lon_brake_min_correct <= lon_brake_min <= lon_brake_max"),
+    ("rss override of unknown vType", lambda d: _set(d, "rss.vtypes", {"bus": {"response_time": 2.0}}),
+     "rss.vtypes.bus", "expected a vType of demand.vtypes"),
+    ("both flow rates", lambda d: _set(d, "demand.flows.0.probability", 0.2), "demand.flows[0]",
+     "exactly one of veh_per_hour, probability"),
+    ("negative flow", lambda d: _set(d, "demand.flows.0.veh_per_hour", -5), "demand.flows[0].veh_per_hour",
+     "expected a number in (0, 20000]"),
+    ("edge not in net", lambda d: _set(d, "demand.flows.0.route", ["hw0", "hw9"]), "demand.flows[0].route[1]",
+     "an edge of the network"),
+    ("unconnected route", lambda d: _set(d, "demand.flows.0.route", ["hw0", "hw2"]), "demand.flows[0].route[1]",
+     "reachable from 'hw0'"),
+    ("lane index out of range", lambda d: _set(d, "ego.depart_lane", 3), "ego.depart_lane",
+     "lane index 0..2 of 'hw0'"),
+    ("sigma out of range", lambda d: _set(d, "demand.vtypes.car.sigma", 1.5), "demand.vtypes.car.sigma",
+     "in [0, 1]"),
+    ("emergency decel below decel", lambda d: _set(d, "demand.vtypes.car.emergency_decel", 2.0),
+     "demand.vtypes.car.emergency_decel", ">= decel (4.5)"),
+    ("unknown controller", lambda d: _set(d, "ego.controller", "autopilot"), "ego.controller", "'epsilon'"),
+    ("ego departs after the end", lambda d: _set(d, "ego.depart_s", 40.0), "ego.depart_s",
+     "before the end of the run"),
+    ("boolean as number", lambda d: _set(d, "seed", True), "seed", "expected an integer"),
+    ("outputs typo", lambda d: _set(d, "outputs", {"fcd_file": True}), "outputs.fcd_file", "unknown key"),
+]
+
+
+@pytest.mark.parametrize("case, breaker, key, expected", BROKEN, ids=[b[0] for b in BROKEN])
+def test_broken_field_names_file_key_and_form(tmp_path, valid_scenario, case, breaker, key, expected):
+    breaker(valid_scenario)
+    path = write_scenario(tmp_path, valid_scenario)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {key}"), message
+    assert expected in message, message
+
+
+def test_the_valid_base_loads(tmp_path, valid_scenario):
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    assert spec.network == "highway" and spec.ego is not None and spec.ego.depart_lane == "1"
+    assert spec.demand.flows[0].veh_per_hour == 1200.0
+
+
+def test_missing_file_and_bad_toml(tmp_path):
+    with pytest.raises(ScenarioError, match="scenario file not found"):
+        load_scenario(tmp_path / "absent.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("network = \n", encoding="utf-8")
+    with pytest.raises(ScenarioError, match=r"bad\.toml: not valid TOML"):
+        load_scenario(bad)
+
+
+def test_cli_prints_one_line_and_exits_2(tmp_path, valid_scenario):
+    valid_scenario["duration_s"] = -1.0
+    path = write_scenario(tmp_path, valid_scenario)
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "run", str(path), "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, cwd=REPO, check=False)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert lines == [f"sumo-rss: error: {path}: duration_s: expected a number in (0, 604800], got -1.0"]
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_debug_shows_the_traceback(tmp_path, valid_scenario):
+    valid_scenario["network"] = "autobahn"
+    path = write_scenario(tmp_path, valid_scenario)
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "--debug", "run", str(path)],
+                          capture_output=True, text=True, cwd=REPO, check=False)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr and "ScenarioError" in proc.stderr
+
+
+def test_the_documented_example_is_a_valid_scenario(tmp_path):
+    text = (REPO / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    example = text.split("```toml\n", 1)[1].split("```", 1)[0]
+    path = tmp_path / "example.toml"
+    path.write_text(example, encoding="utf-8")
+    spec = load_scenario(path)
+    assert spec.name == "my_highway" and [v.id for v in spec.demand.vtypes] == ["car", "truck"]
+    assert spec.demand.vtypes[0].lane_change_params == {"lcSpeedGain": 1.0, "lcKeepRight": 1.0}
+    assert spec.rss.vtype_overrides == {"truck": {"lon_brake_max": 6.0}}
