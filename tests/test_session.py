@@ -84,7 +84,7 @@ def _lane_centre_offsets(network: str) -> dict[str, float]:
     return offsets
 
 
-@pytest.mark.parametrize("name", ["highway_dense", "merge_onramp"])
+@pytest.mark.parametrize("name", SHIPPED_SCENARIOS)
 def test_lateral_position_is_continuous_through_lane_changes(name):
     spec = _spec(name)
     offsets = _lane_centre_offsets(spec.network)
@@ -104,9 +104,10 @@ def test_lateral_position_is_continuous_through_lane_changes(name):
                     lane_changes += 1
                     lat_speeds.append(abs(vlat))
             previous[vid] = (edge, idx, lateral)
-    assert lane_changes >= 20  # the check below saw real lane changes
     assert max_jump <= 0.5
-    assert np.median(lat_speeds) > 0.5  # SUMO reports the lateral speed of the manoeuvre [m/s]
+    if name != "intersection_priority":  # one lane per direction there: nobody changes lanes
+        assert lane_changes >= 10  # the check above saw real lane changes...
+        assert np.median(lat_speeds) > 0.5  # ...and SUMO reports the lateral speed of the manoeuvre [m/s]
 
 
 def test_collisions_are_recorded_once_per_contact(valid_scenario, tmp_path):
