@@ -8,8 +8,10 @@ then the role's overrides, then the overrides of its SUMO vType id (most specifi
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
 
 MODEL_VERSION = "rss-1"
 """Version of the audit semantics; written into every summary so old results stay interpretable."""
@@ -110,3 +112,30 @@ def resolve_params(preset: str, role: str, vtype_id: str | None, *,
     if problems:
         raise ValueError("; ".join(problems))
     return params
+
+
+@dataclass(frozen=True, eq=False)
+class RssParamArrays:
+    """Struct-of-arrays form of many :class:`RssParams` (one row per vehicle or per pair); the formulas
+    accept it wherever they accept an ``RssParams``."""
+
+    response_time: np.ndarray
+    lon_accel_max: np.ndarray
+    lon_brake_min: np.ndarray
+    lon_brake_min_correct: np.ndarray
+    lon_brake_max: np.ndarray
+    lat_accel_max: np.ndarray
+    lat_brake_min: np.ndarray
+    lat_fluctuation_margin: np.ndarray
+    min_lon_gap: np.ndarray
+    max_speed_on_accel: np.ndarray
+
+    @classmethod
+    def stack(cls, params: Sequence[RssParams]) -> RssParamArrays:
+        table = np.array([[getattr(p, name) for name in PARAM_NAMES] for p in params], dtype=float)
+        table = table.reshape(len(params), len(PARAM_NAMES))
+        return cls(*(table[:, k] for k in range(len(PARAM_NAMES))))
+
+    def take(self, index: np.ndarray) -> RssParamArrays:
+        """Rows ``index`` (e.g. the first car of every pair)."""
+        return RssParamArrays(*(getattr(self, name)[index] for name in PARAM_NAMES))

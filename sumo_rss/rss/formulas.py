@@ -1,0 +1,178 @@
+"""RSS safe distances and safe speeds, vectorised (rss.md §2; Shalev-Shwartz et al., arXiv 1708.06374 v6).
+
+Every function broadcasts over numpy arrays: speeds, gaps and the fields of the parameter objects may be
+scalars or arrays of one shape. A parameter object is anything with the attributes of
+:class:`~sumo_rss.rss.params.RssParams` — one ``RssParams`` for scalars or an
+:class:`~sumo_rss.rss.params.RssParamArrays` with one row per pair.
+
+Units: speeds m/s, distances m, accelerations m/s² (brakes as positive magnitudes), times s.
+Conventions match ad_rss, so results compare number for number.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+SAFE_DISTANCE_PRECISION = 1e-3  # [m] a distance is safe iff it exceeds d_min by more than this (ad_rss)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Kinematic helpers
+# ---------------------------------------------------------------------------------------------------------
+def speed_after_response(v: Any, accel: Any, response_time: Any, speed_cap: Any) -> np.ndarray:
+    """Speed after accelerating at ``accel`` for ``response_time``, capped at ``speed_cap``.
+
+    v_ρ = min(max(v_cap, v), v + a·ρ): a car already above the cap keeps its speed.
+    """
+    v = np.asarray(v, dtype=float)
+    return np.minimum(np.maximum(speed_cap, v), v + accel * response_time)
+
+
+def distance_during_response(v: Any, accel: Any, response_time: Any, speed_cap: Any) -> np.ndarray:
+    """Distance covered while accelerating at ``accel`` up to the capped speed v_ρ, then cruising, for ρ.
+
+    d = v·t₁ + a·t₁²/2 + v_ρ·(ρ − t₁), with t₁ = (v_ρ − v)/a the time to reach v_ρ (t₁ = 0 when a = 0).
+    """
+    v = np.asarray(v, dtype=float)
+    v_rho = speed_after_response(v, accel, response_time, speed_cap)
+    accel = np.asarray(accel, dtype=float)
+    safe_accel = np.where(accel > 0.0, accel, 1.0)
+    t1 = np.where(accel > 0.0, (v_rho - v) / safe_accel, 0.0)
+    return v * t1 + 0.5 * accel * t1**2 + v_rho * (response_time - t1)
+
+
+def stopping_distance(v: Any, brake: Any) -> np.ndarray:
+    """Distance to stop from speed ``v`` braking at ``brake`` (> 0): v² / (2·b)."""
+    v = np.asarray(v, dtype=float)
+    return v * v / (2.0 * brake)
+
+
+def worst_case_stopping_distance(v: Any, accel: Any, response_time: Any, speed_cap: Any, brake: Any) -> np.ndarray:
+    """Distance a car covers if it accelerates at ``accel`` during ρ (capped), then brakes at ``brake``.
+
+    D(v) = dist_ρ(v) + v_ρ² / (2·b).
+    """
+    v_rho = speed_after_response(v, accel, response_time, speed_cap)
+    return distance_during_response(v, accel, response_time, speed_cap) + stopping_distance(v_rho, brake)
+
+
+def _rear_distance(v: Any, p: Any, brake: Any) -> np.ndarray:
+    return worst_case_stopping_distance(v, p.lon_accel_max, p.response_time, p.max_speed_on_accel, brake)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Safe distances
+# ---------------------------------------------------------------------------------------------------------
+def lon_safe_distance_same_dir(v_rear: Any, v_front: Any, p_rear: Any, p_front: Any) -> np.ndarray:
+    """Safe longitudinal distance, same direction (paper Def. 1).
+
+    Worst case: the rear car accelerates at a_acc for ρ (up to v_cap), then brakes only at b_min; the front car
+    brakes at b_max at once.
+
+        rear ──▶ v_rear          front ──▶ v_front
+        [====]······ d ······[====]
+
+    d_min = max(0, D_rear − v_front²/(2·b_max,front)) + λ_rear, D_rear = dist_ρ(v_rear) + v_ρ²/(2·b_min,rear).
+    Speeds ≥ 0 [m/s]; result [m], bumper to bumper.
+    """
+    rear = _rear_distance(v_rear, p_rear, p_rear.lon_brake_min)
+    front = stopping_distance(v_front, p_front.lon_brake_max)
+    return np.maximum(rear - front, 0.0) + p_rear.min_lon_gap
+
+
+def lon_safe_distance_opposite(v_correct: Any, v_other: Any, p_correct: Any, p_other: Any,
+                               *, both_correct: bool | np.ndarray = False) -> np.ndarray:
+    """Safe longitudinal distance, opposite directions (paper Def. 2).
+
+    Worst case: both cars accelerate towards each other for ρ, then the car in its correct lane brakes at b_corr
+    and the other at b_min (both at b_corr when ``both_correct``).
+
+        correct ──▶ v_correct        v_other ◀── other
+        [====]··········· d ···········[====]
+
+    d_min = [dist_ρ(v_c) + v_ρ,c²/(2·b_corr,c)] + [dist_ρ(v_o) + v_ρ,o²/(2·b,o)] + max(λ_c, λ_o).
+    Speeds are magnitudes towards each other, ≥ 0 [m/s]; result [m].
+    """
+    correct = _rear_distance(v_correct, p_correct, p_correct.lon_brake_min_correct)
+    other_brake = np.where(both_correct, p_other.lon_brake_min_correct, p_other.lon_brake_min)
+    other = _rear_distance(v_other, p_other, other_brake)
+    return correct + other + np.maximum(p_correct.min_lon_gap, p_other.min_lon_gap)
+
+
+def lat_safe_distance(v_left: Any, v_right: Any, p_left: Any, p_right: Any) -> np.ndarray:
+    """Safe lateral distance (paper Def. 4, signs as in ad_rss).
+
+    ``v_left``, ``v_right``: each car's own lateral speed, + = to the left [m/s]. Worst case: both cars
+    accelerate laterally towards each other at a_lat for ρ, then brake laterally at b_lat until their lateral
+    speed towards the other is 0 (no braking term for a car still moving away after ρ).
+
+        left car   [====]  ↓ u_L = −v_left
+                      d
+        right car  [====]  ↑ u_R = +v_right
+
+    For each car, with u its speed towards the other: u_ρ = u + a_lat·ρ,
+    D = (u + u_ρ)/2·ρ + max(u_ρ, 0)²/(2·b_lat);  d_min = max(0, D_L + D_R + (μ_L + μ_R)/2)  [m].
+    """
+    def reach(u: Any, p: Any) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        u_rho = u + p.lat_accel_max * p.response_time
+        return (u + u_rho) / 2.0 * p.response_time + np.maximum(u_rho, 0.0) ** 2 / (2.0 * p.lat_brake_min)
+
+    d = reach(-np.asarray(v_left, dtype=float), p_left) + reach(v_right, p_right)
+    return np.maximum(d + 0.5 * (p_left.lat_fluctuation_margin + p_right.lat_fluctuation_margin), 0.0)
+
+
+def is_safe_distance(distance: Any, d_min: Any) -> np.ndarray:
+    """``distance`` [m] is safe iff it exceeds ``d_min`` [m] by more than 1 mm (ad_rss's precision)."""
+    return np.asarray(distance) > np.asarray(d_min) + SAFE_DISTANCE_PRECISION
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Safe speed interval (EPSILON's use)
+# ---------------------------------------------------------------------------------------------------------
+def max_safe_speed_behind(gap: Any, v_front: Any, p_self: Any, p_front: Any) -> np.ndarray:
+    """Largest own speed [m/s] that keeps ``gap`` [m] to a front car at ``v_front`` safe (same direction).
+
+    Solves D_self(v) = gap − λ_self + v_front²/(2·b_max,front) for v, where D is continuous and increasing in
+    v with three regimes: v + a·ρ ≤ v_cap (uncapped), v < v_cap < v + a·ρ (reaches the cap), v ≥ v_cap
+    (no acceleration). Returns −inf where even v = 0 is unsafe.
+    """
+    a, rho, cap, b = p_self.lon_accel_max, p_self.response_time, p_self.max_speed_on_accel, p_self.lon_brake_min
+    budget = np.asarray(gap, dtype=float) - p_self.min_lon_gap + stopping_distance(v_front, p_front.lon_brake_max)
+    # Regime 1: with w = v + a·ρ, D = w²/(2b) + w·ρ − a·ρ²/2  →  w = −b·ρ + sqrt(b²ρ² + b(aρ² + 2C)).
+    w = -b * rho + np.sqrt(np.maximum(b * b * rho * rho + b * (a * rho * rho + 2.0 * budget), 0.0))
+    v1 = w - a * rho
+    # Regime 2: D = v_cap·ρ + v_cap²/(2b) − (v_cap − v)²/(2a)  →  v = v_cap − sqrt(2a(v_cap·ρ + v_cap²/(2b) − C)).
+    a_pos = np.where(np.asarray(a) > 0.0, a, 1.0)
+    v2 = cap - np.sqrt(np.maximum(2.0 * a_pos * (cap * rho + cap * cap / (2.0 * b) - budget), 0.0))
+    # Regime 3: D = v·ρ + v²/(2b)  →  v = −b·ρ + sqrt(b²ρ² + 2bC).
+    v3 = -b * rho + np.sqrt(np.maximum(b * b * rho * rho + 2.0 * b * budget, 0.0))
+    v = np.where(v1 + a * rho <= cap, v1, np.where(v3 >= cap, v3, v2))
+    # d_min = max(0, D − F) + λ: the gap must also cover λ on its own.
+    unsafe_at_standstill = (worst_case_stopping_distance(0.0, a, rho, cap, b) > budget) | \
+        (np.asarray(gap, dtype=float) < p_self.min_lon_gap)
+    return np.where(unsafe_at_standstill, -np.inf, np.maximum(v, 0.0))
+
+
+def min_safe_speed_ahead(gap: Any, v_rear: Any, p_self: Any, p_rear: Any) -> np.ndarray:
+    """Smallest own speed [m/s] that keeps ``gap`` [m] to a rear car at ``v_rear`` safe (same direction).
+
+    Solves D_rear(v_rear) − v²/(2·b_max,self) + λ_rear ≤ gap:  v = sqrt(max(0, 2·b_max·(D_rear + λ_rear − gap))).
+    """
+    need = _rear_distance(v_rear, p_rear, p_rear.lon_brake_min) + p_rear.min_lon_gap - np.asarray(gap, dtype=float)
+    return np.sqrt(np.maximum(2.0 * p_self.lon_brake_max * need, 0.0))
+
+
+def safe_speed_interval_same_dir(gap_front: Any, v_front: Any, p_front: Any, gap_rear: Any, v_rear: Any,
+                                 p_rear: Any, p_self: Any) -> tuple[np.ndarray, np.ndarray]:
+    """[v_low, v_high] [m/s] of own speeds safe to both the front and the rear car.
+
+    Pass ``gap_front = inf`` (or ``gap_rear = inf``) where there is no such car. The interval is empty where
+    v_low > v_high.
+    """
+    v_high = np.where(np.isinf(gap_front), np.inf, max_safe_speed_behind(
+        np.where(np.isinf(gap_front), 0.0, gap_front), v_front, p_self, p_front))
+    v_low = np.where(np.isinf(gap_rear), 0.0, min_safe_speed_ahead(
+        np.where(np.isinf(gap_rear), 0.0, gap_rear), v_rear, p_self, p_rear))
+    return v_low, v_high
