@@ -17,6 +17,12 @@ What ad_rss 5.0.0 does with these calls (checked by hand-worked numbers; all agr
 - v_cap: v_ρ = min(max(v_cap, v), v + a_acc·ρ) with the exact accelerate-then-cruise distance; a car
   already faster than v_cap keeps its speed during ρ (it does not slow down to v_cap).
 - Lateral: λ is not used; μ is ½(μ_L + μ_R) and lies *inside* the clamp: d = max(0, D_L + D_R + ½(μ_L+μ_R)).
+
+ad_physics compares with a tolerance (1e-3 in Distance/Speed, 1e-4 in Acceleration), so compare with ~1e-3 m
+tolerance and keep inputs away from these edges, where ad_rss deviates from the exact formula:
+|v − v_cap| < 1e-3 m/s (treated as v = v_cap; up to (ρ + v/b)·1e-3 m off), 0 < |λ_c − λ_o| < 1e-3 m (it
+may take λ_c instead of the max), a_acc < 1e-4 m/s² (~½·a·ρ² off), and a clamped result may come back as a
+tiny negative number in (−1e-3, 0) instead of 0.
 """
 from __future__ import annotations
 

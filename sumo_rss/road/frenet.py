@@ -1,0 +1,70 @@
+"""Vectorised projection of points onto lane centre lines: (x, y) ⇄ (s, d).
+
+Lane shapes are stored padded in one array (lanes × points), so that any number of points, each with its own
+lane, is projected in one numpy pass. The first and last segment of every lane extend beyond its ends, so a
+point before the start of a lane gets s < 0 and one after its end s > length (the frame of a lane continues
+straight ahead and behind it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class LaneShapes:
+    """Padded lane centre lines. ``points[k, :count[k]]`` is lane k's polyline [m]."""
+
+    points: np.ndarray  # [lanes, max_points, 2]
+    count: np.ndarray  # [lanes] number of points (>= 2)
+    cumulative: np.ndarray  # [lanes, max_points] distance along the lane at each point [m]
+
+    @classmethod
+    def from_polylines(cls, polylines: list[np.ndarray]) -> LaneShapes:
+        count = np.array([len(p) for p in polylines], dtype=int)
+        if np.any(count < 2):
+            raise ValueError("every lane shape needs at least two points")
+        width = int(count.max())
+        points = np.zeros((len(polylines), width, 2))
+        for k, poly in enumerate(polylines):
+            points[k, : len(poly)] = poly
+            points[k, len(poly):] = poly[-1]  # padding repeats the end point: zero-length segments
+        seg = np.linalg.norm(np.diff(points, axis=1), axis=2)
+        cumulative = np.concatenate([np.zeros((len(polylines), 1)), np.cumsum(seg, axis=1)], axis=1)
+        return cls(points, count, cumulative)
+
+    def project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Project points (x, y) [m] onto lanes ``lane`` (indices): s along the lane [m], d signed offset
+        (+ = left of the driving direction) [m] and the lane's heading at the foot point [rad]."""
+        lane = np.asarray(lane, dtype=int)
+        p = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)[:, None, :]
+        a = self.points[lane, :-1]  # [n, m-1, 2] segment starts
+        seg = self.points[lane, 1:] - a
+        length2 = np.einsum("nkj,nkj->nk", seg, seg)
+        n_seg = self.count[lane] - 1  # [n]
+        k_idx = np.arange(a.shape[1])[None, :]
+        real = (k_idx < n_seg[:, None]) & (length2 > 0.0)
+        t = np.einsum("nkj,nkj->nk", p - a, seg) / np.where(real, length2, 1.0)
+        lo = np.where(k_idx == 0, -np.inf, 0.0)
+        hi = np.where(k_idx == n_seg[:, None] - 1, np.inf, 1.0)
+        t = np.clip(t, lo, hi)
+        foot = a + t[..., None] * seg
+        dist2 = np.where(real, np.einsum("nkj,nkj->nk", p - foot, p - foot), np.inf)
+        best = np.argmin(dist2, axis=1)
+        rows = np.arange(lane.shape[0])
+        seg_b, a_b, t_b = seg[rows, best], a[rows, best], t[rows, best]
+        seg_len = np.sqrt(length2[rows, best])
+        s = self.cumulative[lane, best] + t_b * seg_len
+        rel = p[:, 0, :] - a_b
+        d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
+        return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])
+
+    def heading_at(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Heading [rad] of lanes ``lane`` at distances ``s`` [m] along them."""
+        lane = np.asarray(lane, dtype=int)
+        cum = self.cumulative[lane]
+        n_seg = self.count[lane] - 1
+        k = np.clip((cum <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1, 0, n_seg - 1)
+        seg = self.points[lane, k + 1] - self.points[lane, k]  # [n, 2]
+        return np.arctan2(seg[:, 1], seg[:, 0])

@@ -1,0 +1,143 @@
+"""RoadNetwork: the static road model of a SUMO .net.xml (lanes, edges, lane graph, geometry).
+
+Read with sumolib, then held as numpy arrays indexed by lane and edge number, so the auditor maps the lane ids of
+a whole snapshot to indices and looks up geometry and topology without Python loops.
+"""
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import sumolib
+
+from .frenet import LaneShapes
+
+REACH_HORIZON_M = 3000.0  # [m] edge-to-edge distances beyond this are not needed (and stored as inf)
+
+
+class UnknownLaneError(ValueError):
+    """Lane ids that are not in the network."""
+
+
+@dataclass(frozen=True, eq=False)
+class RoadNetwork:
+    """Lanes (internal junction lanes included) and edges of one SUMO network.
+
+    Per lane k: ``lane_ids[k]``, ``lane_edge[k]`` (edge index), ``lane_index[k]`` (0 = rightmost),
+    ``lane_length[k]``, ``lane_width[k]`` [m], ``lane_offset[k]`` (centre's offset from the edge's right border,
+    [m]), ``lane_left[k]`` / ``lane_right[k]`` (neighbour lane index or -1), ``lane_successors[k]``.
+    Per edge e: ``edge_ids[e]``, ``edge_internal[e]``, ``edge_opposite[e]`` (edge between the same nodes in
+    the other direction, or -1) and ``edge_distance[e, f]``: the shortest distance [m] from the start of e to the
+    start of f along the lane graph (inf if f is not reachable within REACH_HORIZON_M).
+    """
+
+    path: Path
+    lane_ids: np.ndarray
+    lane_edge: np.ndarray
+    lane_index: np.ndarray
+    lane_length: np.ndarray
+    lane_width: np.ndarray
+    lane_offset: np.ndarray
+    lane_left: np.ndarray
+    lane_right: np.ndarray
+    lane_successors: tuple[tuple[int, ...], ...]
+    shapes: LaneShapes
+    edge_ids: np.ndarray
+    edge_internal: np.ndarray
+    edge_opposite: np.ndarray
+    edge_length: np.ndarray
+    edge_distance: np.ndarray
+    _lane_order: np.ndarray  # argsort of lane_ids, for vectorised id → index lookups
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> RoadNetwork:
+        path = Path(path)
+        net = sumolib.net.readNet(str(path), withInternal=True)
+        edges = sorted(net.getEdges(withInternal=True), key=lambda e: e.getID())
+        edge_index = {e.getID(): i for i, e in enumerate(edges)}
+        lanes = [lane for e in edges for lane in e.getLanes()]
+        lane_idx = {lane.getID(): k for k, lane in enumerate(lanes)}
+
+        offsets = np.zeros(len(lanes))
+        left = np.full(len(lanes), -1)
+        right = np.full(len(lanes), -1)
+        for e in edges:
+            edge_lanes = e.getLanes()
+            border = 0.0
+            for i, lane in enumerate(edge_lanes):
+                k = lane_idx[lane.getID()]
+                offsets[k] = border + lane.getWidth() / 2.0
+                border += lane.getWidth()
+                if i > 0:
+                    right[k] = lane_idx[edge_lanes[i - 1].getID()]
+                if i + 1 < len(edge_lanes):
+                    left[k] = lane_idx[edge_lanes[i + 1].getID()]
+
+        successors = []
+        for lane in lanes:
+            nxt = []
+            for c in lane.getOutgoing():
+                via = c.getViaLaneID()
+                nxt.append(lane_idx[via] if via else lane_idx[c.getToLane().getID()])
+            successors.append(tuple(sorted(set(nxt))))
+
+        edge_length = np.array([max(lane.getLength() for lane in e.getLanes()) for e in edges])
+        opposite = np.full(len(edges), -1)
+        by_nodes = {(e.getFromNode().getID(), e.getToNode().getID()): i for i, e in enumerate(edges)
+                    if e.getFunction() != "internal"}
+        for (a, b), i in by_nodes.items():
+            opposite[i] = by_nodes.get((b, a), -1)
+
+        lane_edge = np.array([edge_index[lane.getEdge().getID()] for lane in lanes])
+        edge_succ = [set() for _ in edges]
+        for k, nxt in enumerate(successors):
+            edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt)
+        lane_ids = np.array([lane.getID() for lane in lanes], dtype=str)
+        return cls(
+            path=path, lane_ids=lane_ids, lane_edge=lane_edge,
+            lane_index=np.array([lane.getIndex() for lane in lanes]),
+            lane_length=np.array([lane.getLength() for lane in lanes]),
+            lane_width=np.array([lane.getWidth() for lane in lanes]),
+            lane_offset=offsets, lane_left=left, lane_right=right, lane_successors=tuple(successors),
+            shapes=LaneShapes.from_polylines([np.array(lane.getShape(), dtype=float)[:, :2] for lane in lanes]),
+            edge_ids=np.array([e.getID() for e in edges], dtype=str),
+            edge_internal=np.array([e.getFunction() == "internal" for e in edges]),
+            edge_opposite=opposite, edge_length=edge_length,
+            edge_distance=_edge_distances(edge_succ, edge_length),
+            _lane_order=np.argsort(lane_ids))
+
+    def lane_indices(self, lane_ids: np.ndarray) -> np.ndarray:
+        """Indices of ``lane_ids`` (vectorised); raises :class:`UnknownLaneError` naming the unknown ids."""
+        lane_ids = np.asarray(lane_ids, dtype=str)
+        sorted_ids = self.lane_ids[self._lane_order]
+        pos = np.clip(np.searchsorted(sorted_ids, lane_ids), 0, len(sorted_ids) - 1)
+        found = sorted_ids[pos] == lane_ids
+        if not np.all(found):
+            raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(sorted(set(lane_ids[~found])))}")
+        return self._lane_order[pos]
+
+    def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(s, d, lane heading) of points in the frame of lanes ``lane`` (indices); see LaneShapes.project."""
+        return self.shapes.project(lane, x, y)
+
+
+def _edge_distances(successors: list[set[int]], length: np.ndarray) -> np.ndarray:
+    """All-pairs shortest start-to-start distances [m] over the edge graph (Dijkstra from every edge)."""
+    n = len(successors)
+    dist = np.full((n, n), np.inf)
+    for source in range(n):
+        best = {source: 0.0}
+        queue = [(0.0, source)]
+        while queue:
+            d, e = heapq.heappop(queue)
+            if d > best.get(e, np.inf) or d > REACH_HORIZON_M:
+                continue
+            dist[source, e] = d
+            for f in successors[e]:
+                nd = d + length[e]
+                if nd < best.get(f, np.inf):
+                    best[f] = nd
+                    heapq.heappush(queue, (nd, f))
+    return dist
