@@ -15,8 +15,11 @@ import tomli_w
 
 from .. import __version__
 from ..errors import SumoRssError
+from ..road.network import RoadNetwork
+from ..rss.auditor import Auditor, CollisionInput, ParamResolver
 from ..rss.params import MODEL_VERSION
 from ..scenario import ScenarioSpec
+from ..sim.demand import EGO_TYPE
 
 SUMMARY_FILE = "summary.json"
 
@@ -36,10 +39,21 @@ class RunSummary:
     peak_vehicles: int
     collisions: int
     teleports: int
+    episodes: int
+    violations: int
+    responsible_episodes: dict[str, int]  # responsible (a/b/both/none) → episodes
     ego_id: str | None
     ego_controller: str | None
     collision_events: list[dict] = field(default_factory=list)
     versions: dict[str, str] = field(default_factory=dict)
+
+
+def param_resolver(spec: ScenarioSpec) -> ParamResolver:
+    """The RSS parameters of a scenario, per vehicle class and vType."""
+    dynamics = {vt.id: (vt.tau, vt.decel) for vt in spec.demand.vtypes}
+    if spec.ego is not None:
+        dynamics[EGO_TYPE] = (spec.ego.vehicle.tau, spec.ego.vehicle.decel)
+    return ParamResolver(spec.rss.preset, spec.rss.role_overrides, spec.rss.vtype_overrides, dynamics)
 
 
 def run_directory(out_dir: Path, spec: ScenarioSpec) -> Path:
@@ -56,7 +70,7 @@ def versions() -> dict[str, str]:
 
 def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
             on_step: Callable[[float], None] | None = None) -> RunSummary:
-    """Co-simulate ``spec`` (its own seed) and write ``<out>/<scenario>/<seed>/``.
+    """Co-simulate ``spec`` (its own seed), audit every step and write ``<out>/<scenario>/<seed>/``.
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
     directory either holds a whole run or does not exist. ``on_step(time_s)`` is called after every step.
@@ -72,17 +86,26 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
     try:
         (work / "scenario.toml").write_bytes(tomli_w.dumps(spec.to_toml_data()).encode("utf-8"))
         started = time.perf_counter()
+        auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), f"{spec.name}/{spec.seed}")
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
-                session.step()
+                seen = len(session.collisions)
+                snapshot = session.step()
+                auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
+                                           for c in session.collisions[seen:]])
                 if on_step is not None:
                     on_step(session.time)
+        audit = auditor.finish()
         wall = time.perf_counter() - started
+        audit.to_csv(work)
+        write_json(work / "rss_params.json", audit.params)
         summary = RunSummary(
             scenario=spec.name, seed=spec.seed, status="ok", steps=session.steps, sim_time_s=session.time,
             wall_time_s=wall, real_time_factor=session.time / wall if wall > 0 else float("inf"),
             vehicles_inserted=session.vehicles_inserted, peak_vehicles=session.peak_vehicles,
             collisions=len(session.collisions), teleports=session.teleports, ego_id=session.ego_id,
+            episodes=len(audit.episodes), violations=len(audit.violations),
+            responsible_episodes={k: int(v) for k, v in audit.episodes["responsible"].value_counts().sort_index().items()},
             ego_controller=spec.ego.controller if spec.ego else None,
             collision_events=[asdict(c) for c in session.collisions], versions=versions())
         write_json(work / SUMMARY_FILE, asdict(summary))

@@ -30,7 +30,8 @@ class RoadNetwork:
     [m]), ``lane_left[k]`` / ``lane_right[k]`` (neighbour lane index or -1), ``lane_successors[k]``.
     Per edge e: ``edge_ids[e]``, ``edge_internal[e]``, ``edge_opposite[e]`` (edge between the same nodes in
     the other direction, or -1) and ``edge_distance[e, f]``: the shortest distance [m] from the start of e to the
-    start of f along the lane graph (inf if f is not reachable within REACH_HORIZON_M).
+    start of f along the lane graph (inf if f is not reachable within REACH_HORIZON_M); ``edge_exit[e]``: e
+    itself for a normal edge, the normal edge an internal (junction) edge leads to otherwise.
     """
 
     path: Path
@@ -49,7 +50,9 @@ class RoadNetwork:
     edge_opposite: np.ndarray
     edge_length: np.ndarray
     edge_distance: np.ndarray
+    edge_exit: np.ndarray
     _lane_order: np.ndarray  # argsort of lane_ids, for vectorised id → index lookups
+    _edge_lookup: dict[str, int]
 
     @classmethod
     def from_file(cls, path: str | Path) -> RoadNetwork:
@@ -106,7 +109,12 @@ class RoadNetwork:
             edge_internal=np.array([e.getFunction() == "internal" for e in edges]),
             edge_opposite=opposite, edge_length=edge_length,
             edge_distance=_edge_distances(edge_succ, edge_length),
-            _lane_order=np.argsort(lane_ids))
+            edge_exit=_edge_exits(edge_succ, [e.getFunction() == "internal" for e in edges]),
+            _lane_order=np.argsort(lane_ids), _edge_lookup=edge_index)
+
+    def edge_indices(self, edge_ids: list[str] | tuple[str, ...]) -> np.ndarray:
+        """Indices of edge ids (e.g. a route); raises ``KeyError`` for an unknown id."""
+        return np.array([self._edge_lookup[e] for e in edge_ids], dtype=int)
 
     def lane_indices(self, lane_ids: np.ndarray) -> np.ndarray:
         """Indices of ``lane_ids`` (vectorised); raises :class:`UnknownLaneError` naming the unknown ids."""
@@ -121,6 +129,18 @@ class RoadNetwork:
     def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(s, d, lane heading) of points in the frame of lanes ``lane`` (indices); see LaneShapes.project."""
         return self.shapes.project(lane, x, y)
+
+
+def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:
+    """For each edge, the first normal edge reached by following successors (itself if normal)."""
+    exits = np.arange(len(successors))
+    for e in range(len(successors)):
+        current, seen = e, set()
+        while internal[current] and successors[current] and current not in seen:
+            seen.add(current)
+            current = min(successors[current])
+        exits[e] = current
+    return exits
 
 
 def _edge_distances(successors: list[set[int]], length: np.ndarray) -> np.ndarray:

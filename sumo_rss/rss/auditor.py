@@ -1,0 +1,163 @@
+"""Auditor: watches every vehicle pair of a run, step by step, and reports danger episodes, violations of the
+proper response and blame (rss.md §3-§6).
+
+``observe`` reads like the paper: per-vehicle frame → candidate pairs → situations → safety → responsibility.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..road.network import RoadNetwork
+from ..sim.snapshot import EGO_CLASS, WorldSnapshot
+from .params import RssParamArrays, RssParams, resolve_params
+from .responsibility import ResponsibilityTracker, StepInput
+from .situations import PairSituations, evaluate, vehicle_frame
+
+EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "episode_index",
+                   "situation", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b", "responsible",
+                   "min_lon_margin_m", "min_lat_margin_m", "collision", "collider", "victim", "ended_by"]
+VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
+                     "worst_actual", "excess", "t_start_s", "t_end_s"]
+COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
+CSV_FLOAT_FORMAT = "%.6f"
+
+
+@dataclass(frozen=True)
+class CollisionInput:
+    """A collision at the current step, as SUMO reports it."""
+
+    time: float  # [s]
+    collider: str
+    victim: str
+    kind: str
+
+
+class ParamResolver:
+    """RSS parameters per (vehicle class, vType), resolved once and cached (rss.md §1)."""
+
+    def __init__(self, preset: str = "ad_rss", role_overrides: Mapping[str, Mapping[str, float]] | None = None,
+                 vtype_overrides: Mapping[str, Mapping[str, float]] | None = None,
+                 vtype_dynamics: Mapping[str, tuple[float, float]] | None = None):
+        self.preset = preset
+        self.role_overrides = dict(role_overrides or {})
+        self.vtype_overrides = dict(vtype_overrides or {})
+        self.vtype_dynamics = dict(vtype_dynamics or {})  # vType id → (tau [s], decel [m/s²])
+        self._cache: dict[tuple[str, str], RssParams] = {}
+
+    def get(self, vclass: str, vtype: str) -> RssParams:
+        key = (vclass, vtype)
+        if key not in self._cache:
+            role = "ego" if vclass == EGO_CLASS else "background"
+            tau, decel = self.vtype_dynamics.get(vtype, (1.0, 4.5))
+            self._cache[key] = resolve_params(self.preset, role, None if role == "ego" else vtype,
+                                              role_overrides=self.role_overrides,
+                                              vtype_overrides=self.vtype_overrides, tau=tau, decel=decel)
+        return self._cache[key]
+
+    def resolved(self) -> dict[str, dict[str, float]]:
+        """Every parameter set used so far, keyed 'class/vType' (written next to the results)."""
+        return {f"{c}/{t}": p.to_dict() for (c, t), p in sorted(self._cache.items())}
+
+    def arrays(self, snapshot: WorldSnapshot) -> RssParamArrays:
+        keys = np.char.add(np.char.add(snapshot.vclass.astype(str), "\x1f"), snapshot.vtype.astype(str))
+        unique, inverse = np.unique(keys, return_inverse=True)
+        table = RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique])
+        return table.take(inverse)
+
+
+@dataclass
+class AuditResult:
+    episodes: pd.DataFrame
+    violations: pd.DataFrame
+    collisions: pd.DataFrame
+    params: dict[str, dict[str, float]]
+
+    def to_csv(self, directory: str | Path) -> None:
+        """Write episodes.csv, violations.csv and collisions.csv atomically (temp file + rename)."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        for name, frame in (("episodes", self.episodes), ("violations", self.violations),
+                            ("collisions", self.collisions)):
+            tmp = directory / f".{name}.csv.tmp"
+            frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+            os.replace(tmp, directory / f"{name}.csv")
+
+
+class Auditor:
+    """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
+
+    def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = ""):
+        self.network = network
+        self.params = params or ParamResolver()
+        self.run_id = run_id
+        self.last_situations: PairSituations | None = None
+        self.pair_steps = 0
+        self._tracker = ResponsibilityTracker(run_id)
+        self._uid: dict[str, int] = {}
+        self._route_rows: dict[tuple[str, ...] | None, np.ndarray] = {}
+        self._prev_ids: set[str] = set()
+        self._collisions: list[dict] = []
+
+    def observe(self, snapshot: WorldSnapshot, collisions: Iterable[CollisionInput] = ()) -> PairSituations:
+        """Audit one step; returns the evaluated pairs (for inspection)."""
+        params = self.params.arrays(snapshot)
+        frame = vehicle_frame(snapshot, self.network, params, self._remaining_routes(snapshot))
+        situations = evaluate(snapshot, frame, self.network)
+        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
+        keys = (uid[situations.a] << 32) | uid[situations.b]
+        new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
+        self._tracker.step(StepInput(
+            time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, vclass=snapshot.vclass,
+            accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
+        for c in collisions:
+            self._record_collision(c)
+        self._prev_ids = set(snapshot.ids.tolist())
+        self.last_situations = situations
+        self.pair_steps += len(situations)
+        return situations
+
+    def _record_collision(self, c: CollisionInput) -> None:
+        a, b = sorted((c.collider, c.victim))
+        key = (self._uid.get(a, -1) << 32) | self._uid.get(b, -1) if a in self._uid and b in self._uid else None
+        record = self._tracker.collide(key, c.time, c.collider, c.victim) if key is not None else None
+        if record is None:
+            blamed, episode_key = "none", ""
+        else:
+            who = {"a": [a], "b": [b], "both": [a, b], "none": []}[record["responsible"]]
+            blamed, episode_key = (";".join(who) or "none"), record["episode_key"]
+        self._collisions.append({"run_id": self.run_id, "time_s": c.time, "collider": c.collider,
+                                 "victim": c.victim, "sumo_type": c.kind, "blamed": blamed,
+                                 "episode_key": episode_key})
+
+    def _remaining_routes(self, snapshot: WorldSnapshot) -> np.ndarray:
+        """[n, k] edge indices of each vehicle's remaining route, -1 padded (all -1 where unknown)."""
+        n = len(snapshot)
+        routes = snapshot.route_edges or (None,) * n
+        rows = [self._route_row(r) for r in routes]
+        width = max((len(r) for r in rows), default=1) or 1
+        table = np.full((n, width), -1, dtype=int)
+        for k, row in enumerate(rows):
+            table[k, : len(row)] = row
+        passed = np.arange(width)[None, :] < snapshot.route_index[:, None]
+        return np.where(passed & (snapshot.route_index[:, None] >= 0), -1, table)
+
+    def _route_row(self, route: tuple[str, ...] | None) -> np.ndarray:
+        if route not in self._route_rows:
+            self._route_rows[route] = self.network.edge_indices(route) if route else np.zeros(0, dtype=int)
+        return self._route_rows[route]
+
+    def finish(self) -> AuditResult:
+        self._tracker.finish()
+        episodes = pd.DataFrame(self._tracker.episode_records, columns=EPISODE_COLUMNS)
+        episodes = episodes.sort_values(["t_b_s", "vehicle_a", "vehicle_b"], kind="stable", ignore_index=True)
+        violations = pd.DataFrame(self._tracker.violation_records, columns=VIOLATION_COLUMNS)
+        violations = violations.sort_values(["t_start_s", "episode_key", "vehicle_id", "constraint"], kind="stable",
+                                            ignore_index=True)
+        collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)
+        return AuditResult(episodes, violations, collisions, self.params.resolved())

@@ -1,0 +1,318 @@
+"""Per-pair state across steps: danger threshold, owed response, compliance of both cars, violations, blame
+(rss.md §5).
+
+Open episodes live in one struct of arrays sorted by pair key and are rolled over once per step; closed
+episodes and finished violations become records and leave the state, so memory stays bounded by the number of
+pairs that are dangerous *now*.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from .params import RssParamArrays
+from .situations import SITUATION_CODES, PairSituations
+
+EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
+STOPPED_SPEED = 0.05  # [m/s] below this a car counts as stopped
+TIME_EPS = 1e-9  # [s]
+
+
+class Constraint(str, Enum):
+    """One rule of a proper response (values go into violations.csv)."""
+
+    ACCEL_DURING_RESPONSE = "lon-accel-during-response-time"  # a ≤ a_acc during ρ
+    BRAKE_AFTER_RESPONSE = "lon-brake-after-response-time"  # a ≤ −b (b_min or b_corr) after ρ, until stopped
+    BRAKE_BEYOND_MAX = "lon-brake-beyond-max"  # front car: a ≥ −b_max
+    LATERAL_ENVELOPE = "lat-speed-envelope"  # lateral speed towards the other within the braking envelope
+
+
+CONSTRAINTS = tuple(Constraint)
+N_CONSTRAINTS = len(CONSTRAINTS)
+
+
+@dataclass
+class StepInput:
+    """What one step of the tracker needs, per pair (rows of the snapshot in ``a``/``b``)."""
+
+    time: float  # [s]
+    keys: np.ndarray  # int64 pair keys, unique
+    situations: PairSituations
+    ids: np.ndarray  # vehicle ids of the snapshot
+    vclass: np.ndarray
+    accel: np.ndarray  # [m/s²] per snapshot row
+    params: RssParamArrays  # per snapshot row
+    new_vehicle: np.ndarray  # bool per snapshot row: not seen at the previous step
+
+
+@dataclass
+class _Episodes:
+    """Open episodes, sorted by key (struct of arrays)."""
+
+    keys: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    a_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    b_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    a_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    b_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    t_b: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    t_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    owed_lon: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    owed_lat: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    trigger: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    a_rear: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    u0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # lateral speed towards the other at t_b
+    min_lon_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    min_lat_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    responsible: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
+    active: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS), dtype=bool))
+    v_start: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
+    v_last: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
+    v_worst: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
+    v_bound: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
+    v_excess: np.ndarray = field(default_factory=lambda: np.full((0, 2, N_CONSTRAINTS), -np.inf))
+
+    def take(self, index: np.ndarray) -> _Episodes:
+        return _Episodes(**{name: value[index] for name, value in vars(self).items()})
+
+    @staticmethod
+    def concat(parts: list[_Episodes]) -> _Episodes:
+        names = vars(parts[0]).keys()
+        return _Episodes(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names})
+
+    def __len__(self) -> int:
+        return int(self.keys.shape[0])
+
+
+class ResponsibilityTracker:
+    """Rolls the per-pair state forward one step at a time and collects closed episodes and violations."""
+
+    def __init__(self, run_id: str = ""):
+        self.run_id = run_id
+        self.episode_records: list[dict] = []
+        self.violation_records: list[dict] = []
+        self._open = _Episodes()
+        self._prev_keys = np.zeros(0, dtype=np.int64)
+        self._prev_lon_safe = np.zeros(0, dtype=bool)
+        self._prev_lat_safe = np.zeros(0, dtype=bool)
+        self._episode_count: dict[int, int] = {}
+        self._last_time: float | None = None
+
+    # -----------------------------------------------------------------------------------------------------
+    def step(self, step: StepInput) -> None:
+        """Advance to ``step.time``."""
+        if self._last_time is not None and step.time <= self._last_time + TIME_EPS:
+            raise ValueError(f"time must increase: {step.time} s after {self._last_time} s")
+        sit = step.situations
+        order = np.argsort(step.keys, kind="stable")
+        keys = step.keys[order]
+        sit_rows = order
+        dangerous = sit.dangerous[order]
+
+        # 1. Episodes whose pair is safe now (or no longer a candidate, i.e. far apart) end at this step.
+        found, pos = _lookup(keys, self._open.keys)
+        still_dangerous = found & dangerous[pos] if len(keys) else found
+        self._close(~still_dangerous, step.time)
+        # 2. Newly dangerous pairs open an episode at the danger threshold t_b = now.
+        new = dangerous & ~_lookup(self._open.keys, keys)[0]
+        if np.any(new):
+            self._open_new(step, keys[new], sit_rows[new])
+        # 3. Compliance of both cars in every continuing episode (the first judged step is the one after t_b).
+        if len(self._open):
+            rows = sit_rows[np.searchsorted(keys, self._open.keys)]
+            self._check_compliance(step, rows)
+        self._prev_keys = keys
+        self._prev_lon_safe = sit.lon_safe[order]
+        self._prev_lat_safe = sit.lat_safe[order]
+        self._last_time = step.time
+
+    def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
+        """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""
+        hit = np.flatnonzero(self._open.keys == pair_key)
+        if hit.size == 0:
+            return None
+        mask = np.zeros(len(self._open), dtype=bool)
+        mask[hit] = True
+        closed = self._close(mask, time, collision=(collider, victim))
+        return closed[0]
+
+    def finish(self) -> None:
+        """Close every open episode at the last observed time (end of data)."""
+        if len(self._open):
+            self._close(np.ones(len(self._open), dtype=bool), self._last_time or 0.0, end_of_data=True)
+
+    # -----------------------------------------------------------------------------------------------------
+    def _episode_key(self, i: int) -> str:
+        e = self._open
+        return f"{e.a_id[i]}|{e.b_id[i]}|{self._episode_count[int(e.keys[i])]}"
+
+    def _open_new(self, step: StepInput, keys: np.ndarray, rows: np.ndarray) -> None:
+        sit = step.situations
+        a, b = sit.a[rows], sit.b[rows]
+        # What was safe just before t_b decides the owed response (rss.md §5). A pair that was no candidate at
+        # the previous step was far apart: longitudinally safe.
+        seen, pos = _lookup(self._prev_keys, keys)
+        prev_lon = np.where(seen, self._prev_lon_safe[pos], True) if len(self._prev_keys) else np.ones(len(keys), bool)
+        prev_lat = np.where(seen, self._prev_lat_safe[pos], False) if len(self._prev_keys) else np.zeros(len(keys), bool)
+        appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
+        overlap_lon = sit.lon_gap[rows] < 0.0
+        owed_lon = np.where(appeared, ~overlap_lon, prev_lon)
+        owed_lat = np.where(appeared, overlap_lon, prev_lat)
+        trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
+        # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
+        u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
+                              np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
+        n = len(keys)
+        for k in keys:
+            self._episode_count[int(k)] = self._episode_count.get(int(k), 0) + 1
+        fresh = _Episodes(
+            keys=keys.astype(np.int64), a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
+            a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
+            kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
+            owed_lon=owed_lon, owed_lat=owed_lat, trigger=trigger.astype(object),
+            a_rear=sit.a_is_rear[rows], a_left=sit.a_is_left[rows], u0=u0,
+            min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
+            min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
+            responsible=np.zeros((n, 2), dtype=bool), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
+            v_start=np.zeros((n, 2, N_CONSTRAINTS)), v_last=np.zeros((n, 2, N_CONSTRAINTS)),
+            v_worst=np.zeros((n, 2, N_CONSTRAINTS)), v_bound=np.zeros((n, 2, N_CONSTRAINTS)),
+            v_excess=np.full((n, 2, N_CONSTRAINTS), -np.inf))
+        merged = _Episodes.concat([self._open, fresh]) if len(self._open) else fresh
+        self._open = merged.take(np.argsort(merged.keys, kind="stable"))
+
+    def _check_compliance(self, step: StepInput, rows: np.ndarray) -> None:
+        """Evaluate every owed constraint for both cars of each open episode at ``step.time``."""
+        e, sit, t = self._open, step.situations, step.time
+        e.min_lon_margin = np.minimum(e.min_lon_margin, sit.lon_gap[rows] - sit.lon_d_min[rows])
+        e.min_lat_margin = np.minimum(e.min_lat_margin, sit.lat_gap[rows] - sit.lat_d_min[rows])
+        e.t_last = np.full(len(e), t)
+        judged = t > e.t_b + TIME_EPS
+        cars = np.column_stack([sit.a[rows], sit.b[rows]])  # [n, 2] snapshot rows
+        p = step.params
+        accel = step.accel[cars]
+        v_lon = np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]])
+        v_lat = np.column_stack([sit.v_lat_a[rows], sit.v_lat_b[rows]])
+        rho = p.response_time[cars]
+        tau = (t - e.t_b)[:, None]
+        in_response = tau <= rho + TIME_EPS
+        same = (e.kind == 0)[:, None]
+        rear = np.column_stack([e.a_rear, ~e.a_rear])
+        braker = np.where(same, rear, True) & e.owed_lon[:, None]  # who owes braking
+        front = same & ~rear & e.owed_lon[:, None]
+        brake_needed = np.where(same, p.lon_brake_min[cars], p.lon_brake_min_correct[cars])
+        moving = v_lon >= STOPPED_SPEED
+
+        actual = np.zeros(cars.shape + (N_CONSTRAINTS,))
+        bound = np.zeros_like(actual)
+        sign = np.array([1.0, 1.0, -1.0, 1.0])  # +1: actual ≤ bound; −1: actual ≥ bound
+        applies = np.zeros(actual.shape, dtype=bool)
+        applies[..., 0] = braker & in_response
+        actual[..., 0], bound[..., 0] = accel, p.lon_accel_max[cars]
+        applies[..., 1] = braker & ~in_response & moving
+        actual[..., 1], bound[..., 1] = accel, -brake_needed
+        applies[..., 2] = front
+        actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
+        left = np.column_stack([e.a_left, ~e.a_left])
+        u = np.where(left, -v_lat, v_lat)
+        envelope = e.u0 + p.lat_accel_max[cars] * np.minimum(tau, rho) - \
+            p.lat_brake_min[cars] * np.maximum(tau - rho, 0.0)
+        applies[..., 3] = e.owed_lat[:, None]
+        actual[..., 3], bound[..., 3] = u, np.maximum(envelope, 0.0)
+        tolerance = np.full(actual.shape, EPS_ACCEL)
+        tolerance[..., 3] = EPS_ACCEL * tau  # a velocity envelope: the acceleration tolerance, integrated
+        excess = sign * (actual - bound)
+        violating = applies & judged[:, None, None] & (excess > tolerance)
+        self._roll_violations(violating, actual, bound, excess, t)
+
+    def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
+                         t: float) -> None:
+        e = self._open
+        starting = violating & ~e.active
+        e.v_start = np.where(starting, t, e.v_start)
+        worse = violating & (excess > e.v_excess)
+        e.v_worst = np.where(worse, actual, e.v_worst)
+        e.v_bound = np.where(worse, bound, e.v_bound)
+        e.v_excess = np.where(worse, excess, e.v_excess)
+        e.v_last = np.where(violating, t, e.v_last)
+        ended = e.active & ~violating
+        if np.any(ended):
+            self._emit_violations(ended)
+        e.active = violating
+        e.responsible |= np.any(violating, axis=2)
+
+    def _emit_violations(self, mask: np.ndarray) -> None:
+        e = self._open
+        for i, car, c in zip(*np.nonzero(mask)):
+            vid = e.a_id[i] if car == 0 else e.b_id[i]
+            vclass = e.a_class[i] if car == 0 else e.b_class[i]
+            self.violation_records.append({
+                "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_id": vid,
+                "vehicle_class": vclass, "role": _role(e, i, car), "constraint": CONSTRAINTS[c].value,
+                "bound": float(e.v_bound[i, car, c]), "worst_actual": float(e.v_worst[i, car, c]),
+                "excess": float(e.v_excess[i, car, c]), "t_start_s": float(e.v_start[i, car, c]),
+                "t_end_s": float(e.v_last[i, car, c])})
+        e.v_excess = np.where(mask, -np.inf, e.v_excess)
+
+    def _close(self, mask: np.ndarray, time: float, *, collision: tuple[str, str] | None = None,
+               end_of_data: bool = False) -> list[dict]:
+        if not np.any(mask):
+            return []
+        e = self._open
+        self._emit_violations(e.active & mask[:, None, None])
+        records = []
+        for i in np.flatnonzero(mask):
+            t_end = float(e.t_last[i]) if end_of_data else time
+            resp = e.responsible[i]
+            records.append({
+                "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_a": e.a_id[i],
+                "vehicle_b": e.b_id[i], "class_a": e.a_class[i], "class_b": e.b_class[i],
+                "episode_index": self._episode_count[int(e.keys[i])],
+                "situation": SITUATION_CODES[e.kind[i]].value, "t_b_s": float(e.t_b[i]), "t_end_s": t_end,
+                "duration_s": t_end - float(e.t_b[i]), "trigger": e.trigger[i],
+                "owed_a": _owed(e, i, 0), "owed_b": _owed(e, i, 1),
+                "responsible": "both" if resp.all() else "a" if resp[0] else "b" if resp[1] else "none",
+                "min_lon_margin_m": float(e.min_lon_margin[i]), "min_lat_margin_m": float(e.min_lat_margin[i]),
+                "collision": collision is not None, "collider": collision[0] if collision else "",
+                "victim": collision[1] if collision else "", "ended_by": "collision" if collision else
+                "end-of-data" if end_of_data else "safe"})
+        self.episode_records.extend(records)
+        self._open = e.take(np.flatnonzero(~mask))
+        return records
+
+
+def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(found, position) of each ``query`` key in ``sorted_keys``; positions are valid indices where found."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(query), dtype=bool), np.zeros(len(query), dtype=int)
+    pos = np.clip(np.searchsorted(sorted_keys, query), 0, len(sorted_keys) - 1)
+    return sorted_keys[pos] == query, pos
+
+
+def _role(e: _Episodes, i: int, car: int) -> str:
+    is_a = car == 0
+    parts = []
+    if e.owed_lon[i]:
+        if e.kind[i] == 0:
+            parts.append("rear" if e.a_rear[i] == is_a else "front")
+        else:
+            parts.append("oncoming")
+    if e.owed_lat[i]:
+        parts.append("left" if e.a_left[i] == is_a else "right")
+    return "+".join(parts)
+
+
+def _owed(e: _Episodes, i: int, car: int) -> str:
+    """The proper response owed by one car, e.g. 'lon:brake-min+lat:brake'."""
+    is_a = car == 0
+    parts = []
+    if e.owed_lon[i]:
+        if e.kind[i] == 0:
+            parts.append("lon:brake-min" if e.a_rear[i] == is_a else "lon:brake-at-most-max")
+        else:
+            parts.append("lon:brake-correct")
+    if e.owed_lat[i]:
+        parts.append("lat:brake")
+    return "+".join(parts)
