@@ -99,6 +99,7 @@ class ResponsibilityTracker:
         self._prev_lon_safe = np.zeros(0, dtype=bool)
         self._prev_lat_safe = np.zeros(0, dtype=bool)
         self._episode_count: dict[int, int] = {}
+        self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._last_time: float | None = None
 
     # -----------------------------------------------------------------------------------------------------
@@ -116,8 +117,11 @@ class ResponsibilityTracker:
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
         self._close(~still_dangerous, step.time)
+        # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
+        found, pos = _lookup(keys, self._collided)
+        self._collided = self._collided[found & dangerous[pos]] if len(keys) else self._collided[:0]
         # 2. Newly dangerous pairs open an episode at the danger threshold t_b = now.
-        new = dangerous & ~_lookup(self._open.keys, keys)[0]
+        new = dangerous & ~_lookup(self._open.keys, keys)[0] & ~_lookup(self._collided, keys)[0]
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
         # 3. Compliance of both cars in every continuing episode (the first judged step is the one after t_b).
@@ -136,6 +140,7 @@ class ResponsibilityTracker:
             return None
         mask = np.zeros(len(self._open), dtype=bool)
         mask[hit] = True
+        self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
         closed = self._close(mask, time, collision=(collider, victim))
         return closed[0]
 
