@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, nets.
+"""The ``sumo-rss`` command line: run, batch, audit, nets.
 
 Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
 ``--debug`` shows the traceback instead.
@@ -11,6 +11,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import SumoRssError
+from .rss.params import PRESETS
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -23,6 +24,11 @@ _BATCH_EXAMPLES = """examples:
   sumo-rss batch scenarios/default.toml
   sumo-rss batch scenarios/default.toml --seeds 0:5 --out results/sweep
   sumo-rss batch scenarios/default.toml --seeds 1,7,42
+"""
+_AUDIT_EXAMPLES = """examples:
+  sumo-rss audit results/merge_onramp/0/fcd.xml --net networks/merge/merge.net.xml \\
+      --vtypes results/merge_onramp/0/routes.rou.xml --collisions results/merge_onramp/0/collisions.xml
+  sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
 """
 _NETS_EXAMPLES = """examples:
   sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
@@ -95,6 +101,22 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
 
+    audit = sub.add_parser("audit", parents=[common], help="audit a SUMO FCD file offline",
+                           description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
+                                       "write episodes.csv, violations.csv, collisions.csv and rss_params.json.",
+                           epilog=_AUDIT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    audit.add_argument("fcd", type=Path, help="SUMO FCD file (fcd-export)")
+    audit.add_argument("--net", type=Path, required=True, help="the SUMO network of the run (.net.xml)")
+    audit.add_argument("--vtypes", type=Path,
+                       help="route/vType file: vehicle sizes and dynamics, routes (default: SUMO's default vType)")
+    audit.add_argument("--collisions", type=Path,
+                       help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
+    audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS, help="RSS parameter preset")
+    audit.add_argument("--ego", action="append", default=[], metavar="ID",
+                       help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
+    audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
+    audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
+
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
                           description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
                                       "SUMO's netconvert, or check that the committed nets are up to date.",
@@ -139,6 +161,31 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _cmd_audit(args: argparse.Namespace) -> int:
+    from .batch.runner import write_json
+    from .road.network import RoadNetwork
+    from .rss.auditor import ParamResolver
+    from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
+
+    if not args.net.is_file():
+        raise FcdError(f"{args.net}: network file not found")
+    if args.vtypes and not args.vtypes.is_file():
+        raise FcdError(f"{args.vtypes}: vType file not found")
+    vehicles = read_vehicle_info(args.vtypes) if args.vtypes else None
+    if args.collisions and not args.collisions.is_file():
+        raise FcdError(f"{args.collisions}: collision file not found")
+    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics if vehicles else None)
+    fcd = args.fcd.resolve()
+    run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
+    result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,
+                       collisions=args.collisions, ego_ids=tuple(args.ego), run_id=run_id)
+    result.to_csv(args.out)
+    write_json(args.out / "rss_params.json", result.params)
+    print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "
+          f"collisions -> {args.out}")
+    return 0
+
+
 def _cmd_nets(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -165,7 +212,7 @@ def _cmd_nets(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": _cmd_run, "batch": _cmd_batch, "nets": _cmd_nets}[args.command]
+    handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "nets": _cmd_nets}[args.command]
     try:
         return handler(args)
     except SumoRssError as exc:

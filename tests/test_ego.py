@@ -44,7 +44,7 @@ def test_drive_ego_before_the_ego_departs_is_refused(valid_scenario, tmp_path):
     plan = Trajectory(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2))
     with Session(spec) as session:
         session.step()
-        with pytest.raises(SessionError, match="'ego' is not on the road at t = 0.10 s"):
+        with pytest.raises(SessionError, match="'ego' is not on the road at t = 0.00 s"):
             session.drive_ego(plan)
 
 

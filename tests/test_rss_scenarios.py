@@ -37,7 +37,7 @@ def _audit(spec, setup: Callable[[], None], control: Callable[[float], None], se
     with Session(spec) as session:
         libsumo.route.add("hw", ["hw0", "hw1", "hw2"])
         setup()
-        while session.time < seconds - 1e-9:
+        while session.steps < round(seconds / DT):
             control(session.time)
             seen = len(session.collisions)
             snapshot = session.step()

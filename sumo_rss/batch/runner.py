@@ -73,7 +73,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
     """Co-simulate ``spec`` (its own seed), audit every step and write ``<out>/<scenario>/<seed>/``.
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
-    directory either holds a whole run or does not exist. ``on_step(time_s)`` is called after every step.
+    directory either holds a whole run or does not exist. ``on_step(simulated_s)`` is called after every step.
     """
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
 
@@ -94,14 +94,15 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
                 auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
                                            for c in session.collisions[seen:]])
                 if on_step is not None:
-                    on_step(session.time)
+                    on_step(session.steps * spec.step_s)
         audit = auditor.finish()
         wall = time.perf_counter() - started
+        simulated = session.steps * spec.step_s
         audit.to_csv(work)
         write_json(work / "rss_params.json", audit.params)
         summary = RunSummary(
-            scenario=spec.name, seed=spec.seed, status="ok", steps=session.steps, sim_time_s=session.time,
-            wall_time_s=wall, real_time_factor=session.time / wall if wall > 0 else float("inf"),
+            scenario=spec.name, seed=spec.seed, status="ok", steps=session.steps, sim_time_s=simulated,
+            wall_time_s=wall, real_time_factor=simulated / wall if wall > 0 else float("inf"),
             vehicles_inserted=session.vehicles_inserted, peak_vehicles=session.peak_vehicles,
             collisions=len(session.collisions), teleports=session.teleports, ego_id=session.ego_id,
             episodes=len(audit.episodes), violations=len(audit.violations),

@@ -115,12 +115,16 @@ class Auditor:
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, vclass=snapshot.vclass,
             accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
-        for c in collisions:
-            self._record_collision(c)
+        self.record_collisions(collisions)
         self._prev_ids = set(snapshot.ids.tolist())
         self.last_situations = situations
         self.pair_steps += len(situations)
         return situations
+
+    def record_collisions(self, collisions: Iterable[CollisionInput]) -> None:
+        """Join collisions of the current step to their pairs' open episodes (blame = the episode's)."""
+        for c in collisions:
+            self._record_collision(c)
 
     def _record_collision(self, c: CollisionInput) -> None:
         a, b = sorted((c.collider, c.victim))

@@ -19,33 +19,20 @@ from ..errors import SessionError
 from ..scenario import ScenarioSpec
 from ..trajectory import Trajectory
 from . import ego as ego_actuation
+from .collisions import CollisionEvent, ContactTracker
 from .demand import write_route_file
 from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 
 FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals"
-FCD_PRECISION = 6  # decimals in SUMO outputs written by a session (FCD, collisions)
+FCD_PRECISION = 6  # decimals in SUMO outputs written by a session (FCD, collisions). Snapshot values are rounded
+# to the same decimals in SUMO's own units (m, degrees, m/s, m/s²), so an audit of the FCD file sees exactly the
+# numbers the online audit saw.
 
 _VARS = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_SPEED_LAT, tc.VAR_LANE_ID,
          tc.VAR_ROAD_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT, tc.VAR_SIGNALS,
          tc.VAR_ROUTE_INDEX)
 
 _active: Session | None = None
-
-
-@dataclass(frozen=True)
-class CollisionEvent:
-    """A collision as SUMO reports it, once per contact (not every step it lasts)."""
-
-    time: float  # [s]
-    collider: str
-    victim: str
-    collider_type: str
-    victim_type: str
-    collider_speed: float  # [m/s]
-    victim_speed: float  # [m/s]
-    kind: str  # SUMO's collision type: 'collision', 'frontal', 'junction', ...
-    lane: str
-    pos: float  # [m] along ``lane``
 
 
 @dataclass(frozen=True)
@@ -102,8 +89,9 @@ class Session:
         self.steps = 0
         self.snapshot: WorldSnapshot | None = None
         self._static: dict[str, _Static] = {}
-        self._touching: set[tuple[str, str]] = set()
+        self._contacts = ContactTracker()
         self._ego_controlled = False
+        self._step_ms = round(spec.step_s * 1000)
         self._tmp: str | None = None
         self._open = False
 
@@ -162,19 +150,22 @@ class Session:
     # -- stepping ------------------------------------------------------------------------------------------
     @property
     def time(self) -> float:
-        """Current simulation time [s]."""
-        return self.snapshot.time if self.snapshot is not None else 0.0
+        """Time stamp [s] of the current snapshot, as SUMO writes it in its outputs (−step before the first)."""
+        return self.snapshot.time if self.snapshot is not None else -self.spec.step_s
 
     @property
     def finished(self) -> bool:
-        return self.time >= self.spec.duration_s - 1e-9
+        """Whether ``duration_s`` has been simulated (``duration_s / step_s`` steps)."""
+        return self.steps >= round(self.spec.duration_s / self.spec.step_s)
 
     def step(self) -> WorldSnapshot:
         if not self._open:
             raise SessionError("the session is not running; use it as 'with Session(spec) as s:'")
         libsumo.simulationStep()
         self.steps += 1
-        time = libsumo.simulation.getTime()
+        # SUMO stamps the state a step produced with the step's start time in all its output files (FCD,
+        # collisions); snapshots use the same stamp, from SUMO's integer milliseconds (exact decimals).
+        time = (libsumo.simulation.getCurrentTime() - self._step_ms) / 1000.0
         for vid in libsumo.simulation.getDepartedIDList():
             self._on_depart(vid)
         for vid in libsumo.simulation.getArrivedIDList():
@@ -193,14 +184,9 @@ class Session:
                                     EGO_CLASS if vid == self.ego_id else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
 
     def _record_collisions(self, time: float) -> None:
-        touching = set()
-        for c in libsumo.simulation.getCollisions():
-            pair = (c.collider, c.victim) if c.collider < c.victim else (c.victim, c.collider)
-            if pair not in self._touching and pair not in touching:
-                self.collisions.append(CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType,
-                                                      c.colliderSpeed, c.victimSpeed, c.type, c.lane, c.pos))
-            touching.add(pair)
-        self._touching = touching
+        reports = [CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType, c.colliderSpeed,
+                                  c.victimSpeed, c.type, c.lane, c.pos) for c in libsumo.simulation.getCollisions()]
+        self.collisions.extend(self._contacts.step(reports))
 
     def _build_snapshot(self, time: float) -> WorldSnapshot:
         results = libsumo.vehicle.getAllSubscriptionResults()
@@ -213,9 +199,10 @@ class Session:
         n = len(ids)
 
         def col(var: int, dtype: type = float) -> np.ndarray:
-            return np.fromiter((r[var] for r in rows), dtype=dtype, count=n)
+            values = np.fromiter((r[var] for r in rows), dtype=dtype, count=n)
+            return np.round(values, FCD_PRECISION) if dtype is float else values
 
-        xy = np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2)
+        xy = np.round(np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2), FCD_PRECISION)
         return WorldSnapshot(
             time=time, ids=np.array(ids, dtype=str), x=xy[:, 0], y=xy[:, 1],
             heading=compass_deg_to_heading(col(tc.VAR_ANGLE)), speed=col(tc.VAR_SPEED),

@@ -48,7 +48,7 @@ class WorldSnapshot:
     edge_id: np.ndarray  # str
     lane_index: np.ndarray  # int
     lane_pos: np.ndarray  # [m] s of the front bumper along the lane
-    lat_pos: np.ndarray  # [m] offset of the centre line from the lane centre, + = left
+    lat_pos: np.ndarray  # [m] offset of the front-bumper centre from the lane's centre line, + = left (posLat)
     vclass: np.ndarray  # str: 'ego' | 'background'
     vtype: np.ndarray  # str: SUMO vType id
     signals: np.ndarray  # int: SUMO signal bit set

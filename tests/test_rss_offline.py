@@ -1,0 +1,161 @@
+"""Offline audits from SUMO FCD files: identical to the online audit, derived attributes, clear errors."""
+from __future__ import annotations
+
+import gc
+import subprocess
+import sys
+import tracemalloc
+import xml.etree.ElementTree as ET
+
+import libsumo
+import numpy as np
+import pytest
+
+from conftest import NETWORKS, REPO, SCENARIOS, write_scenario
+from sumo_rss import load_scenario
+from sumo_rss.batch.runner import param_resolver
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
+from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, read_vehicle_info
+from sumo_rss.sim.session import Session
+
+HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
+                          check=False)
+
+
+@pytest.fixture(scope="module")
+def dense_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dense")
+    proc = _cli("run", str(SCENARIOS / "highway_dense.toml"), "--duration", "60", "--out", str(out), "--fcd",
+                "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    return out / "highway_dense" / "0"
+
+
+def test_online_and_offline_audits_of_one_run_give_identical_csvs(dense_run, tmp_path):
+    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
+                str(dense_run / "routes.rou.xml"), "--collisions", str(dense_run / "collisions.xml"), "--out",
+                str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    episodes = (dense_run / "episodes.csv").read_bytes()
+    assert episodes.count(b"\n") > 50  # dense traffic under ad_rss parameters: plenty of episodes to compare
+    for name in ("episodes.csv", "violations.csv", "collisions.csv"):
+        assert (tmp_path / name).read_bytes() == (dense_run / name).read_bytes(), name
+
+
+def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_scenario):
+    # A follower that keeps accelerating into a stopped leader (see test_rss_scenarios, case a).
+    valid_scenario["demand"]["flows"] = []
+    del valid_scenario["ego"]
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    online = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "crash")
+    run_dir = tmp_path / "run"
+    with Session(spec, run_dir, fcd=True) as session:
+        libsumo.route.add("hw", ["hw0", "hw1", "hw2"])
+        for vid, pos in (("leader", 150.0), ("follower", 100.0)):
+            libsumo.vehicle.add(vid, "hw", typeID="car", depart="now", departLane="1", departPos=str(pos),
+                                departSpeed="15")
+            libsumo.vehicle.setSpeedMode(vid, 0)
+            libsumo.vehicle.setLaneChangeMode(vid, 0)
+        for _ in range(120):
+            if libsumo.vehicle.getIDCount() == 2:
+                libsumo.vehicle.setSpeed("leader", max(0.0, libsumo.vehicle.getSpeed("leader") - 0.5))
+                libsumo.vehicle.setSpeed("follower", libsumo.vehicle.getSpeed("follower") + 0.1)
+            seen = len(session.collisions)
+            snap = session.step()
+            online.observe(snap, [CollisionInput(c.time, c.collider, c.victim, c.kind)
+                                  for c in session.collisions[seen:]])
+    on = online.finish()
+    assert len(on.collisions) == 1 and on.collisions.blamed[0] == "follower"
+    off = audit_fcd(run_dir / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
+                    vehicles=read_vehicle_info(run_dir / "routes.rou.xml"), collisions=run_dir / "collisions.xml",
+                    run_id="crash")
+    for name in ("episodes", "violations", "collisions"):
+        assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name
+    # Without SUMO's collision file the contact is found from overlapping bounding boxes, one step later at most.
+    boxes = audit_fcd(run_dir / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
+                      vehicles=read_vehicle_info(run_dir / "routes.rou.xml"), run_id="crash")
+    assert len(boxes.collisions) == 1 and boxes.collisions.blamed[0] == "follower"
+    assert boxes.collisions.time_s[0] == pytest.approx(on.collisions.time_s[0], abs=0.1 + 1e-9)
+
+
+def _strip(src, dst, keep: set[str]) -> None:
+    tree = ET.parse(src)
+    for vehicle in tree.iter("vehicle"):
+        for name in list(vehicle.attrib):
+            if name not in keep:
+                del vehicle.attrib[name]
+    tree.write(dst)
+
+
+def test_missing_attributes_are_derived(dense_run, tmp_path):
+    network = RoadNetwork.from_file(HIGHWAY)
+    vehicles = read_vehicle_info(dense_run / "routes.rou.xml")
+    _strip(dense_run / "fcd.xml", tmp_path / "bare.xml", {"id", "x", "y", "angle", "speed", "lane", "type"})
+    full = list(FcdReader(dense_run / "fcd.xml", network, vehicles))
+    bare = list(FcdReader(tmp_path / "bare.xml", network, vehicles))
+    assert len(full) == len(bare) == 600
+    for f, b in zip(full[1:], bare[1:]):
+        assert np.array_equal(f.ids, b.ids)
+        # SUMO's acceleration is the speed change over the last step: derived exactly (to the file's 1e-6).
+        np.testing.assert_allclose(b.accel, f.accel, atol=2e-5)
+        np.testing.assert_allclose(b.lane_pos, f.lane_pos, atol=1e-3)  # from x, y and the lane shape [m]
+        np.testing.assert_allclose(b.lat_pos, f.lat_pos, atol=1e-3)
+        # Lateral speed from lateral-position differences: equal except at a lane change's first step.
+        assert np.mean(np.abs(b.lat_speed - f.lat_speed) < 1e-3) > 0.97
+
+
+def test_truncated_fcd_names_the_file_and_time_step(dense_run, tmp_path):
+    text = (dense_run / "fcd.xml").read_text()
+    cut = tmp_path / "cut.xml"
+    cut.write_text(text[: len(text) // 2])
+    reader = FcdReader(cut, RoadNetwork.from_file(HIGHWAY))
+    with pytest.raises(FcdError, match=r"cut\.xml: malformed or truncated FCD after time step \d+\.\d+ s"):
+        for _ in reader:
+            pass
+
+
+def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
+    merge = NETWORKS / "merge" / "merge.net.xml"
+    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(merge), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 2
+    (line,) = proc.stderr.strip().splitlines()
+    assert "fcd.xml, time step 0.0 s: lanes not in merge.net.xml: hw0_" in line and "--net" in line
+    assert not (tmp_path / "out").exists()  # nothing half-written
+    not_fcd = tmp_path / "routes.xml"
+    not_fcd.write_text((dense_run / "routes.rou.xml").read_text())
+    proc = _cli("audit", str(not_fcd), "--net", str(HIGHWAY))
+    assert proc.returncode == 2 and "expected <fcd-export>" in proc.stderr
+    proc = _cli("audit", str(tmp_path / "nope.xml"), "--net", str(HIGHWAY))
+    assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
+
+
+def test_reader_uses_constant_memory(dense_run, tmp_path):
+    # The last time step of the run (about 100 vehicles) repeated 1500 times: constant traffic, growing file.
+    steps = ET.parse(dense_run / "fcd.xml").getroot().findall("timestep")
+    body = ET.tostring(steps[-1], encoding="unicode").split(">", 1)[1].rsplit("</timestep>", 1)[0]
+    long_fcd = tmp_path / "long.xml"
+    with long_fcd.open("w") as fh:
+        fh.write("<fcd-export>\n")
+        for k in range(1500):
+            fh.write(f'<timestep time="{k / 10:.2f}">{body}</timestep>\n')
+        fh.write("</fcd-export>\n")
+    reader = FcdReader(long_fcd, RoadNetwork.from_file(HIGHWAY))
+    tracemalloc.start()
+    live = []
+    for k, _ in enumerate(reader):
+        if k in (150, 1499):
+            gc.collect()
+            live.append(tracemalloc.get_traced_memory()[0])
+    tracemalloc.stop()
+    assert live[1] < 1.2 * live[0]  # ten times the steps read, the same live memory
+
+
+def test_param_resolver_uses_vtype_dynamics_for_krauss():
+    resolver = ParamResolver("krauss", vtype_dynamics={"truck": (1.5, 4.0)})
+    truck = resolver.get("background", "truck")
+    assert (truck.response_time, truck.lon_brake_min, truck.lon_brake_max, truck.lon_accel_max) == (1.5, 4.0, 4.0, 0.0)
