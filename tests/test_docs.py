@@ -1,0 +1,39 @@
+"""The documentation names only what the code has: glossary names exist, CSV schemas match the writers."""
+from __future__ import annotations
+
+import re
+
+from conftest import REPO
+from sumo_rss.rss import auditor, formulas, responsibility, situations
+from sumo_rss.rss.params import PARAM_NAMES
+
+OUTPUTS = (REPO / "docs" / "outputs.md").read_text(encoding="utf-8")
+
+
+def _table(heading: str) -> list[list[str]]:
+    section = OUTPUTS.split(heading, 1)[1].split("\n## ", 1)[0]
+    rows = [line.strip().strip("|").split("|") for line in section.splitlines() if line.startswith("|")]
+    return [[cell.strip() for cell in row] for row in rows[2:]]
+
+
+def test_every_glossary_code_name_exists():
+    known = set(PARAM_NAMES) | set(dir(formulas)) | set(dir(responsibility)) | set(dir(situations)) | \
+        set(auditor.EPISODE_COLUMNS) | set(auditor.COLLISION_COLUMNS)
+    names = [n for row in _table("## Glossary") for n in re.findall(r"`([^`]+)`", row[1])]
+    assert len(names) >= 15
+    assert [n for n in names if n not in known] == []
+
+
+def test_documented_columns_are_the_written_columns():
+    for heading, columns in (("## `episodes.csv`", auditor.EPISODE_COLUMNS),
+                             ("## `violations.csv`", auditor.VIOLATION_COLUMNS),
+                             ("## `collisions.csv`", auditor.COLLISION_COLUMNS)):
+        documented = [n for row in _table(heading) for n in re.findall(r"`([^`]+)`", row[0])]
+        assert documented == columns, heading
+
+
+def test_documented_constraints_and_situations_exist():
+    for constraint in responsibility.Constraint:
+        assert f"`{constraint.value}`" in OUTPUTS
+    for kind in situations.SituationType:
+        assert f"`{kind.value}`" in OUTPUTS
