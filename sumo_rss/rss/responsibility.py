@@ -296,28 +296,26 @@ def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.
     return sorted_keys[pos] == query, pos
 
 
-def _role(e: _Episodes, i: int, car: int) -> str:
+def _duties(e: _Episodes, i: int, car: int) -> list[tuple[str, str]]:
+    """(role, owed response) of one car of episode ``i`` for each owed response, e.g. ('rear', 'lon:brake-min')."""
     is_a = car == 0
-    parts = []
+    duties = []
     if e.owed_lon[i]:
-        if e.kind[i] == 0:
-            parts.append("rear" if e.a_rear[i] == is_a else "front")
+        if e.kind[i] != 0:
+            duties.append(("oncoming", "lon:brake-correct"))
+        elif e.a_rear[i] == is_a:
+            duties.append(("rear", "lon:brake-min"))
         else:
-            parts.append("oncoming")
+            duties.append(("front", "lon:brake-at-most-max"))
     if e.owed_lat[i]:
-        parts.append("left" if e.a_left[i] == is_a else "right")
-    return "+".join(parts)
+        duties.append(("left" if e.a_left[i] == is_a else "right", "lat:brake"))
+    return duties
+
+
+def _role(e: _Episodes, i: int, car: int) -> str:
+    return "+".join(role for role, _ in _duties(e, i, car))
 
 
 def _owed(e: _Episodes, i: int, car: int) -> str:
     """The proper response owed by one car, e.g. 'lon:brake-min+lat:brake'."""
-    is_a = car == 0
-    parts = []
-    if e.owed_lon[i]:
-        if e.kind[i] == 0:
-            parts.append("lon:brake-min" if e.a_rear[i] == is_a else "lon:brake-at-most-max")
-        else:
-            parts.append("lon:brake-correct")
-    if e.owed_lat[i]:
-        parts.append("lat:brake")
-    return "+".join(parts)
+    return "+".join(owed for _, owed in _duties(e, i, car))
