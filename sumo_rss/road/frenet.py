@@ -34,20 +34,32 @@ class LaneShapes:
         cumulative = np.concatenate([np.zeros((len(polylines), 1)), np.cumsum(seg, axis=1)], axis=1)
         return cls(points, count, cumulative)
 
-    def project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, s_hint: np.ndarray | None = None,
+                window: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Project points (x, y) [m] onto lanes ``lane`` (indices): s along the lane [m], d signed offset
-        (+ = left of the driving direction) [m] and the lane's heading at the foot point [rad]."""
+        (+ = left of the driving direction) [m] and the lane's heading at the foot point [rad].
+
+        With ``s_hint`` [m] (roughly where along the lane each point is), only the ``window`` segments on each
+        side of the hinted one are searched instead of all of them.
+        """
         lane = np.asarray(lane, dtype=int)
-        p = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)[:, None, :]
-        a = self.points[lane, :-1]  # [n, m-1, 2] segment starts
-        seg = self.points[lane, 1:] - a
-        length2 = np.einsum("nkj,nkj->nk", seg, seg)
         n_seg = self.count[lane] - 1  # [n]
-        k_idx = np.arange(a.shape[1])[None, :]
-        real = (k_idx < n_seg[:, None]) & (length2 > 0.0)
+        if s_hint is None:
+            seg_idx = np.broadcast_to(np.arange(self.points.shape[1] - 1), (lane.shape[0], self.points.shape[1] - 1))
+        else:
+            centre = (self.cumulative[lane] <= np.asarray(s_hint, dtype=float)[:, None]).sum(axis=1) - 1
+            centre = np.clip(centre, 0, n_seg - 1)
+            seg_idx = centre[:, None] + np.arange(-window, window + 1)[None, :]
+        real = (seg_idx >= 0) & (seg_idx < n_seg[:, None])
+        seg_idx = np.clip(seg_idx, 0, self.points.shape[1] - 2)
+        p = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)[:, None, :]
+        a = self.points[lane[:, None], seg_idx]  # [n, k, 2] segment starts
+        seg = self.points[lane[:, None], seg_idx + 1] - a
+        length2 = np.einsum("nkj,nkj->nk", seg, seg)
+        real &= length2 > 0.0
         t = np.einsum("nkj,nkj->nk", p - a, seg) / np.where(real, length2, 1.0)
-        lo = np.where(k_idx == 0, -np.inf, 0.0)
-        hi = np.where(k_idx == n_seg[:, None] - 1, np.inf, 1.0)
+        lo = np.where(seg_idx == 0, -np.inf, 0.0)
+        hi = np.where(seg_idx == n_seg[:, None] - 1, np.inf, 1.0)
         t = np.clip(t, lo, hi)
         foot = a + t[..., None] * seg
         dist2 = np.where(real, np.einsum("nkj,nkj->nk", p - foot, p - foot), np.inf)
@@ -55,7 +67,7 @@ class LaneShapes:
         rows = np.arange(lane.shape[0])
         seg_b, a_b, t_b = seg[rows, best], a[rows, best], t[rows, best]
         seg_len = np.sqrt(length2[rows, best])
-        s = self.cumulative[lane, best] + t_b * seg_len
+        s = self.cumulative[lane, seg_idx[rows, best]] + t_b * seg_len
         rel = p[:, 0, :] - a_b
         d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
         return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])

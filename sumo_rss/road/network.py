@@ -126,9 +126,10 @@ class RoadNetwork:
             raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(sorted(set(lane_ids[~found])))}")
         return self._lane_order[pos]
 
-    def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray,
+               s_hint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(s, d, lane heading) of points in the frame of lanes ``lane`` (indices); see LaneShapes.project."""
-        return self.shapes.project(lane, x, y)
+        return self.shapes.project(lane, x, y, s_hint)
 
 
 def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:

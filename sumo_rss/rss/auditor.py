@@ -100,7 +100,8 @@ class Auditor:
         self.pair_steps = 0
         self._tracker = ResponsibilityTracker(run_id)
         self._uid: dict[str, int] = {}
-        self._route_rows: dict[tuple[str, ...] | None, np.ndarray] = {}
+        self._route_ids: dict[tuple[str, ...] | None, int] = {}
+        self._route_matrix = np.full((0, 1), -1, dtype=int)
         self._prev_ids: set[str] = set()
         self._collisions: list[dict] = []
 
@@ -143,18 +144,24 @@ class Auditor:
         """[n, k] edge indices of each vehicle's remaining route, -1 padded (all -1 where unknown)."""
         n = len(snapshot)
         routes = snapshot.route_edges or (None,) * n
-        rows = [self._route_row(r) for r in routes]
-        width = max((len(r) for r in rows), default=1) or 1
-        table = np.full((n, width), -1, dtype=int)
-        for k, row in enumerate(rows):
-            table[k, : len(row)] = row
-        passed = np.arange(width)[None, :] < snapshot.route_index[:, None]
-        return np.where(passed & (snapshot.route_index[:, None] >= 0), -1, table)
+        ids = np.fromiter((self._route_id(r) for r in routes), dtype=int, count=n)
+        table = self._route_matrix[ids]
+        passed = np.arange(table.shape[1])[None, :] < snapshot.route_index[:, None]
+        return np.where(passed, -1, table)
 
-    def _route_row(self, route: tuple[str, ...] | None) -> np.ndarray:
-        if route not in self._route_rows:
-            self._route_rows[route] = self.network.edge_indices(route) if route else np.zeros(0, dtype=int)
-        return self._route_rows[route]
+    def _route_id(self, route: tuple[str, ...] | None) -> int:
+        """Row of ``route`` (edge indices, -1 padded) in the route matrix, added on first sight."""
+        key = route or None
+        row = self._route_ids.get(key)
+        if row is None:
+            edges = self.network.edge_indices(key) if key else np.zeros(0, dtype=int)
+            width = max(self._route_matrix.shape[1], len(edges), 1)
+            matrix = np.full((self._route_matrix.shape[0] + 1, width), -1, dtype=int)
+            matrix[:-1, : self._route_matrix.shape[1]] = self._route_matrix
+            matrix[-1, : len(edges)] = edges
+            self._route_matrix, row = matrix, matrix.shape[0] - 1
+            self._route_ids[key] = row
+        return row
 
     def finish(self) -> AuditResult:
         self._tracker.finish()

@@ -57,8 +57,27 @@ def worst_case_stopping_distance(v: Any, accel: Any, response_time: Any, speed_c
     return distance_during_response(v, accel, response_time, speed_cap) + stopping_distance(v_rho, brake)
 
 
-def _rear_distance(v: Any, p: Any, brake: Any) -> np.ndarray:
+def lon_reach(v: Any, p: Any, brake: Any) -> np.ndarray:
+    """Worst-case distance of a car with parameters ``p`` at speed ``v`` [m/s] that brakes at ``brake`` after
+    accelerating during ρ: D = dist_ρ(v) + v_ρ²/(2·brake) [m]."""
     return worst_case_stopping_distance(v, p.lon_accel_max, p.response_time, p.max_speed_on_accel, brake)
+
+
+# The safe distances combine per-car terms; the auditor computes those terms once per vehicle and combines them
+# per pair with the same functions, so both paths give bit-identical numbers.
+def combine_same_dir(rear_reach: Any, front_stop: Any, rear_min_gap: Any) -> np.ndarray:
+    """d_min = max(0, D_rear − S_front) + λ_rear [m]."""
+    return np.maximum(np.asarray(rear_reach) - front_stop, 0.0) + rear_min_gap
+
+
+def combine_opposite(reach_correct: Any, reach_other: Any, gap_correct: Any, gap_other: Any) -> np.ndarray:
+    """d_min = D_correct + D_other + max(λ_correct, λ_other) [m]."""
+    return np.asarray(reach_correct) + reach_other + np.maximum(gap_correct, gap_other)
+
+
+def combine_lateral(reach_left: Any, reach_right: Any, margin_left: Any, margin_right: Any) -> np.ndarray:
+    """d_min = max(0, D_L + D_R + (μ_L + μ_R)/2) [m]."""
+    return np.maximum(np.asarray(reach_left) + reach_right + 0.5 * (np.asarray(margin_left) + margin_right), 0.0)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -76,9 +95,8 @@ def lon_safe_distance_same_dir(v_rear: Any, v_front: Any, p_rear: Any, p_front: 
     d_min = max(0, D_rear − v_front²/(2·b_max,front)) + λ_rear, D_rear = dist_ρ(v_rear) + v_ρ²/(2·b_min,rear).
     Speeds ≥ 0 [m/s]; result [m], bumper to bumper.
     """
-    rear = _rear_distance(v_rear, p_rear, p_rear.lon_brake_min)
-    front = stopping_distance(v_front, p_front.lon_brake_max)
-    return np.maximum(rear - front, 0.0) + p_rear.min_lon_gap
+    return combine_same_dir(lon_reach(v_rear, p_rear, p_rear.lon_brake_min),
+                            stopping_distance(v_front, p_front.lon_brake_max), p_rear.min_lon_gap)
 
 
 def lon_safe_distance_opposite(v_correct: Any, v_other: Any, p_correct: Any, p_other: Any,
@@ -94,10 +112,9 @@ def lon_safe_distance_opposite(v_correct: Any, v_other: Any, p_correct: Any, p_o
     d_min = [dist_ρ(v_c) + v_ρ,c²/(2·b_corr,c)] + [dist_ρ(v_o) + v_ρ,o²/(2·b,o)] + max(λ_c, λ_o).
     Speeds are magnitudes towards each other, ≥ 0 [m/s]; result [m].
     """
-    correct = _rear_distance(v_correct, p_correct, p_correct.lon_brake_min_correct)
     other_brake = np.where(both_correct, p_other.lon_brake_min_correct, p_other.lon_brake_min)
-    other = _rear_distance(v_other, p_other, other_brake)
-    return correct + other + np.maximum(p_correct.min_lon_gap, p_other.min_lon_gap)
+    return combine_opposite(lon_reach(v_correct, p_correct, p_correct.lon_brake_min_correct),
+                            lon_reach(v_other, p_other, other_brake), p_correct.min_lon_gap, p_other.min_lon_gap)
 
 
 def lat_safe_distance(v_left: Any, v_right: Any, p_left: Any, p_right: Any) -> np.ndarray:
@@ -114,13 +131,19 @@ def lat_safe_distance(v_left: Any, v_right: Any, p_left: Any, p_right: Any) -> n
     For each car, with u its speed towards the other: u_ρ = u + a_lat·ρ,
     D = (u + u_ρ)/2·ρ + max(u_ρ, 0)²/(2·b_lat);  d_min = max(0, D_L + D_R + (μ_L + μ_R)/2)  [m].
     """
-    def reach(u: Any, p: Any) -> np.ndarray:
-        u = np.asarray(u, dtype=float)
-        u_rho = u + p.lat_accel_max * p.response_time
-        return (u + u_rho) / 2.0 * p.response_time + np.maximum(u_rho, 0.0) ** 2 / (2.0 * p.lat_brake_min)
+    return combine_lateral(lateral_reach(-np.asarray(v_left, dtype=float), p_left), lateral_reach(v_right, p_right),
+                           p_left.lat_fluctuation_margin, p_right.lat_fluctuation_margin)
 
-    d = reach(-np.asarray(v_left, dtype=float), p_left) + reach(v_right, p_right)
-    return np.maximum(d + 0.5 * (p_left.lat_fluctuation_margin + p_right.lat_fluctuation_margin), 0.0)
+
+def lateral_reach(u: Any, p: Any) -> np.ndarray:
+    """Lateral distance one car covers towards the other in the worst case (its share of Def. 4) [m].
+
+    ``u``: lateral speed towards the other car [m/s]. u_ρ = u + a_lat·ρ;
+    reach = (u + u_ρ)/2·ρ + max(u_ρ, 0)²/(2·b_lat) (no braking term when still moving away after ρ).
+    """
+    u = np.asarray(u, dtype=float)
+    u_rho = u + p.lat_accel_max * p.response_time
+    return (u + u_rho) / 2.0 * p.response_time + np.maximum(u_rho, 0.0) ** 2 / (2.0 * p.lat_brake_min)
 
 
 def is_safe_distance(distance: Any, d_min: Any) -> np.ndarray:
@@ -160,7 +183,7 @@ def min_safe_speed_ahead(gap: Any, v_rear: Any, p_self: Any, p_rear: Any) -> np.
 
     Solves D_rear(v_rear) − v²/(2·b_max,self) + λ_rear ≤ gap:  v = sqrt(max(0, 2·b_max·(D_rear + λ_rear − gap))).
     """
-    need = _rear_distance(v_rear, p_rear, p_rear.lon_brake_min) + p_rear.min_lon_gap - np.asarray(gap, dtype=float)
+    need = lon_reach(v_rear, p_rear, p_rear.lon_brake_min) + p_rear.min_lon_gap - np.asarray(gap, dtype=float)
     return np.sqrt(np.maximum(2.0 * p_self.lon_brake_max * need, 0.0))
 
 

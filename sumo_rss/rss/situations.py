@@ -19,9 +19,9 @@ from scipy.spatial import cKDTree
 
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
-from .formulas import (is_safe_distance, lat_safe_distance, lon_safe_distance_opposite, lon_safe_distance_same_dir,
-                       worst_case_stopping_distance)
-from .params import PARAM_NAMES, RssParamArrays
+from .formulas import (combine_lateral, combine_opposite, combine_same_dir, is_safe_distance, lateral_reach, lon_reach,
+                       stopping_distance)
+from .params import RssParamArrays
 
 
 class SituationType(str, Enum):
@@ -36,7 +36,11 @@ SITUATION_CODES = (SituationType.SAME_DIRECTION, SituationType.OPPOSITE_DIRECTIO
 
 @dataclass(frozen=True, eq=False)
 class VehicleFrame:
-    """Per-vehicle quantities every stage needs (one row per snapshot row)."""
+    """Per-vehicle quantities (one row per snapshot row), in each vehicle's own lane frame.
+
+    Every term of the safe distances that depends on one car only is here, computed once per vehicle; pairs on
+    one edge (parallel lanes) combine them directly, pairs across edges recompute them in the reference frame.
+    """
 
     lane: np.ndarray  # lane index in the network
     edge: np.ndarray  # edge index
@@ -46,7 +50,15 @@ class VehicleFrame:
     d: np.ndarray  # centre's offset from its lane's centre line, + = left [m]
     rel_heading: np.ndarray  # heading relative to its lane [rad]
     speed: np.ndarray  # total speed [m/s] along ``heading``
-    reach: np.ndarray  # worst-case distance covered before standing still (a_acc during ρ, then b_corr) [m]
+    v_lon: np.ndarray  # speed along the lane [m/s]
+    v_lat: np.ndarray  # speed across the lane, + = left [m/s]
+    half_lon: np.ndarray  # half extent of the bounding box along the lane [m]
+    half_lat: np.ndarray  # half extent across the lane [m]
+    reach: np.ndarray  # worst case before standing still: a_acc during ρ, then b_corr (the candidate bound) [m]
+    reach_min: np.ndarray  # the same with b_min (a rear car's share of d_min) [m]
+    stop_max: np.ndarray  # stopping distance at b_max (a front car's share) [m]
+    lat_reach_as_left: np.ndarray  # lateral reach towards a car on its right [m]
+    lat_reach_as_right: np.ndarray  # lateral reach towards a car on its left [m]
     route_edges: np.ndarray  # [n, k] remaining route as edge indices, -1 padded; all -1 when unknown
     params: RssParamArrays
 
@@ -84,18 +96,34 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 
+def _half_extents(length: np.ndarray, width: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Half extents [m] along and across a lane of a box rotated by ``theta`` [rad] against it."""
+    c, s = np.abs(np.cos(theta)), np.abs(np.sin(theta))
+    return 0.5 * length * c + 0.5 * width * s, 0.5 * length * s + 0.5 * width * c
+
+
 def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssParamArrays,
                   route_edges: np.ndarray) -> VehicleFrame:
-    """Per-vehicle geometry in the network: lanes, centres, Frenet coordinates, worst-case reach."""
+    """Per-vehicle geometry in the network and the per-car terms of the safe distances."""
     lane = network.lane_indices(snapshot.lane_id)
     cx = snapshot.x - 0.5 * snapshot.length * np.cos(snapshot.heading)
     cy = snapshot.y - 0.5 * snapshot.length * np.sin(snapshot.heading)
-    s, d, lane_heading = network.frenet(lane, cx, cy)
+    # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
+    hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
+    s, d, lane_heading = network.frenet(lane, cx, cy, hint)
+    theta = _wrap(snapshot.heading - lane_heading)
     speed = np.hypot(snapshot.speed, snapshot.lat_speed)
-    reach = worst_case_stopping_distance(speed, params.lon_accel_max, params.response_time,
-                                         params.max_speed_on_accel, params.lon_brake_min_correct)
-    return VehicleFrame(lane, network.lane_edge[lane], cx, cy, s, d, _wrap(snapshot.heading - lane_heading), speed,
-                        reach, route_edges, params)
+    v_lon, v_lat = speed * np.cos(theta), speed * np.sin(theta)
+    half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
+    forward = np.maximum(v_lon, 0.0)
+    return VehicleFrame(
+        lane=lane, edge=network.lane_edge[lane], cx=cx, cy=cy, s=s, d=d, rel_heading=theta, speed=speed,
+        v_lon=v_lon, v_lat=v_lat, half_lon=half_lon, half_lat=half_lat,
+        reach=lon_reach(speed, params, params.lon_brake_min_correct),
+        reach_min=lon_reach(forward, params, params.lon_brake_min),
+        stop_max=stopping_distance(forward, params.lon_brake_max),
+        lat_reach_as_left=lateral_reach(-v_lat, params), lat_reach_as_right=lateral_reach(v_lat, params),
+        route_edges=route_edges, params=params)
 
 
 def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.ndarray, np.ndarray]:
@@ -136,8 +164,12 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     same_edge = ei == ej
     dist_ij = network.edge_distance[ei, ej]
     dist_ji = network.edge_distance[ej, ei]
-    j_ahead = ~same_edge & np.isfinite(dist_ij) & (dist_ij <= dist_ji) & _on_route(frame, i, ej, network)
-    i_ahead = ~same_edge & np.isfinite(dist_ji) & (dist_ji < dist_ij) & _on_route(frame, j, ei, network)
+    j_ahead = ~same_edge & np.isfinite(dist_ij) & (dist_ij <= dist_ji)
+    i_ahead = ~same_edge & np.isfinite(dist_ji) & (dist_ji < dist_ij)
+    # Chained edges count only along the rear car's remaining route (or any route where it is unknown).
+    for ahead, rear, front_edge in ((j_ahead, i, ej), (i_ahead, j, ei)):
+        k = np.flatnonzero(ahead)
+        ahead[k] = _on_route(frame, rear[k], front_edge[k], network)
     # On one edge, compare positions scaled to a common length (lanes of a curved edge differ in length).
     scale = network.edge_length[ei] / network.lane_length[frame.lane[i]]
     scale_j = network.edge_length[ej] / network.lane_length[frame.lane[j]]
@@ -145,29 +177,21 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     same_dir = same_edge | j_ahead | i_ahead
     opposite = ~same_dir & (network.edge_opposite[ei] == ej) & (ej >= 0)
     kind = np.where(same_dir, 0, np.where(opposite, 1, -1))
-    j_is_ref = (same_dir & (j_ahead | j_front_same_edge))
-    ref = np.where(j_is_ref, j, i)
-    other = np.where(j_is_ref, i, j)
-    return kind, ref, other
+    j_is_ref = same_dir & (j_ahead | j_front_same_edge)
+    return kind, np.where(j_is_ref, j, i), np.where(j_is_ref, i, j)
 
 
-def other_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray, heading: np.ndarray,
-                             network: RoadNetwork) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(s, d, heading relative to the lane) of the other car's centre in the reference car's lane frame.
-
-    On one edge the lanes are parallel offset curves, so the other car's own Frenet coordinates convert exactly
-    (s scaled by the lane lengths, d shifted by the lane offsets); across edges its centre is projected.
-    """
-    lane_r, lane_o = frame.lane[ref], frame.lane[other]
-    s_o = frame.s[other] * network.lane_length[lane_r] / network.lane_length[lane_o]
-    d_o = frame.d[other] + network.lane_offset[lane_o] - network.lane_offset[lane_r]
-    theta_o = frame.rel_heading[other].copy()
-    cross = np.flatnonzero(frame.edge[ref] != frame.edge[other])
-    if cross.size:
-        s_x, d_x, foot_heading = network.frenet(lane_r[cross], frame.cx[other[cross]], frame.cy[other[cross]])
-        s_o[cross], d_o[cross] = s_x, d_x
-        theta_o[cross] = _wrap(heading[other[cross]] - foot_heading)
-    return s_o, d_o, theta_o
+def _cross_edge_hint(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray, network: RoadNetwork) -> np.ndarray:
+    """Roughly where [m] along the reference lane the other car's centre lies: behind its start by the path
+    length between the edges when the other car is upstream, ahead of its end when downstream, mirrored on the
+    opposite edge of a two-way road."""
+    e_r, e_o = frame.edge[ref], frame.edge[other]
+    upstream = network.edge_distance[e_o, e_r]
+    downstream = network.edge_distance[e_r, e_o]
+    length_r = network.lane_length[frame.lane[ref]]
+    return np.where(np.isfinite(upstream), frame.s[other] - upstream,
+                    np.where(np.isfinite(downstream), frame.s[other] + downstream,
+                             length_r - frame.s[other]))
 
 
 def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork) -> PairSituations:
@@ -177,57 +201,67 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     relevant = kind >= 0
     kind, ref, other = kind[relevant], ref[relevant], other[relevant]
 
-    s_o, d_o, theta_o = other_in_reference_frame(frame, ref, other, snapshot.heading, network)
-    theta_r = frame.rel_heading[ref]
-    s_r, d_r = frame.s[ref], frame.d[ref]
-
-    def half_extents(row: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        half_l, half_w = 0.5 * snapshot.length[row], 0.5 * snapshot.width[row]
-        c, s = np.abs(np.cos(theta)), np.abs(np.sin(theta))
-        return half_l * c + half_w * s, half_l * s + half_w * c
-
-    lon_o, lat_o = half_extents(other, theta_o)
-    lon_r, lat_r = half_extents(ref, theta_r)
-    lon_gap = np.abs(s_o - s_r) - lon_o - lon_r
-    lat_gap = np.abs(d_o - d_r) - lat_o - lat_r
-    v_lon_o, v_lat_o = frame.speed[other] * np.cos(theta_o), frame.speed[other] * np.sin(theta_o)
-    v_lon_r, v_lat_r = frame.speed[ref] * np.cos(theta_r), frame.speed[ref] * np.sin(theta_r)
+    # The other car in the reference lane's frame. On one edge the lanes are parallel offset curves: its own
+    # Frenet coordinates convert exactly (s scaled by the lane lengths, d shifted by the lane offsets) and its
+    # per-car terms hold as they are. Across edges its centre is projected and its terms are recomputed.
+    lane_r, lane_o = frame.lane[ref], frame.lane[other]
+    s_o = frame.s[other] * network.lane_length[lane_r] / network.lane_length[lane_o]
+    d_o = frame.d[other] + network.lane_offset[lane_o] - network.lane_offset[lane_r]
+    v_lon_o, v_lat_o = frame.v_lon[other], frame.v_lat[other]
+    half_lon_o, half_lat_o = frame.half_lon[other], frame.half_lat[other]
+    cross = np.flatnonzero(frame.edge[ref] != frame.edge[other])
+    if cross.size:
+        oc = other[cross]
+        s_x, d_x, foot_heading = network.frenet(lane_r[cross], frame.cx[oc], frame.cy[oc],
+                                                _cross_edge_hint(frame, ref[cross], oc, network))
+        theta = _wrap(snapshot.heading[oc] - foot_heading)
+        s_o[cross], d_o[cross] = s_x, d_x
+        v_lon_o[cross], v_lat_o[cross] = frame.speed[oc] * np.cos(theta), frame.speed[oc] * np.sin(theta)
+        half_lon_o[cross], half_lat_o[cross] = _half_extents(snapshot.length[oc], snapshot.width[oc], theta)
 
     same = kind == 0
-    # Opposite pairs that have passed each other are no situation any more.
-    keep = same | (s_o > s_r)
-    kind, ref, other, same, lon_gap, lat_gap, d_o, d_r, v_lon_o, v_lat_o, v_lon_r, v_lat_r = (
-        x[keep] for x in (kind, ref, other, same, lon_gap, lat_gap, d_o, d_r, v_lon_o, v_lat_o, v_lon_r, v_lat_r))
+    keep = same | (s_o > frame.s[ref])  # opposite pairs that have passed each other are no situation any more
+    if not np.all(keep):
+        kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
+            x[keep] for x in (kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
+        cross = np.flatnonzero(frame.edge[ref] != frame.edge[other])
+    lon_gap = np.abs(s_o - frame.s[ref]) - half_lon_o - frame.half_lon[ref]
+    lat_gap = np.abs(d_o - frame.d[ref]) - half_lat_o - frame.half_lat[ref]
+    other_left = d_o > frame.d[ref]
 
-    params = frame.params
-    p_ref, p_other = params.take(ref), params.take(other)
-    # Same direction: the reference is the front car. Opposite: speeds towards each other.
-    v_ref_lon = np.maximum(v_lon_r, 0.0)
-    v_other_lon = np.where(same, np.maximum(v_lon_o, 0.0), np.maximum(-v_lon_o, 0.0))
-    lon_same = lon_safe_distance_same_dir(v_other_lon, v_ref_lon, p_other, p_ref)
-    lon_opp = lon_safe_distance_opposite(v_ref_lon, v_other_lon, p_ref, p_other, both_correct=True)
-    lon_d_min = np.where(same, lon_same, lon_opp)
-
-    other_left = d_o > d_r
-    v_lat_left = np.where(other_left, v_lat_o, v_lat_r)
-    v_lat_right = np.where(other_left, v_lat_r, v_lat_o)
-    p_left = _select(other_left, p_other, p_ref)
-    p_right = _select(other_left, p_ref, p_other)
-    lat_d_min = lat_safe_distance(v_lat_left, v_lat_right, p_left, p_right)
+    # Per-car terms, gathered; the other car's recomputed across edges (in the reference frame).
+    p = frame.params
+    reach_o, stop_r = frame.reach_min[other], frame.stop_max[ref]
+    lat_left_o, lat_right_o = frame.lat_reach_as_left[other], frame.lat_reach_as_right[other]
+    if cross.size:
+        p_x = p.take(other[cross])
+        reach_o[cross] = lon_reach(np.maximum(v_lon_o[cross], 0.0), p_x, p_x.lon_brake_min)
+        lat_left_o[cross] = lateral_reach(-v_lat_o[cross], p_x)
+        lat_right_o[cross] = lateral_reach(v_lat_o[cross], p_x)
+    lon_d_min = combine_same_dir(reach_o, stop_r, p.min_lon_gap[other])
+    opposite = np.flatnonzero(~same)
+    if opposite.size:  # both cars in their correct lanes: both brake at b_corr; speeds towards each other
+        r, o = ref[opposite], other[opposite]
+        p_r, p_o = p.take(r), p.take(o)
+        lon_d_min[opposite] = combine_opposite(
+            lon_reach(np.maximum(frame.v_lon[r], 0.0), p_r, p_r.lon_brake_min_correct),
+            lon_reach(np.maximum(-v_lon_o[opposite], 0.0), p_o, p_o.lon_brake_min_correct),
+            p_r.min_lon_gap, p_o.min_lon_gap)
+    lat_d_min = combine_lateral(np.where(other_left, lat_left_o, frame.lat_reach_as_left[ref]),
+                                np.where(other_left, frame.lat_reach_as_right[ref], lat_right_o),
+                                p.lat_fluctuation_margin[np.where(other_left, other, ref)],
+                                p.lat_fluctuation_margin[np.where(other_left, ref, other)])
 
     # Name the pair by id order: a < b.
     a_is_ref = snapshot.ids[ref] < snapshot.ids[other]
-    a = np.where(a_is_ref, ref, other)
-    b = np.where(a_is_ref, other, ref)
-    a_is_rear = np.where(same, ~a_is_ref, a_is_ref)  # opposite pairs: "a is the reference car"
-    a_is_left = np.where(a_is_ref, ~other_left, other_left)
+    v_ref_lon = np.maximum(frame.v_lon[ref], 0.0)
+    v_other_lon = np.where(same, np.maximum(v_lon_o, 0.0), np.maximum(-v_lon_o, 0.0))
+    v_lat_r = frame.v_lat[ref]
     return PairSituations(
-        a=a, b=b, kind=kind, a_is_rear=a_is_rear, a_is_left=a_is_left, lon_gap=lon_gap, lat_gap=lat_gap,
+        a=np.where(a_is_ref, ref, other), b=np.where(a_is_ref, other, ref), kind=kind,
+        a_is_rear=np.where(same, ~a_is_ref, a_is_ref),  # opposite pairs: "a is the reference car"
+        a_is_left=np.where(a_is_ref, ~other_left, other_left), lon_gap=lon_gap, lat_gap=lat_gap,
         v_lon_a=np.where(a_is_ref, v_ref_lon, v_other_lon), v_lon_b=np.where(a_is_ref, v_other_lon, v_ref_lon),
         v_lat_a=np.where(a_is_ref, v_lat_r, v_lat_o), v_lat_b=np.where(a_is_ref, v_lat_o, v_lat_r),
         lon_d_min=lon_d_min, lat_d_min=lat_d_min,
         lon_safe=is_safe_distance(lon_gap, lon_d_min), lat_safe=is_safe_distance(lat_gap, lat_d_min))
-
-
-def _select(mask: np.ndarray, if_true: RssParamArrays, if_false: RssParamArrays) -> RssParamArrays:
-    return RssParamArrays(*(np.where(mask, getattr(if_true, n), getattr(if_false, n)) for n in PARAM_NAMES))
