@@ -32,14 +32,20 @@ def speed_after_response(v: Any, accel: Any, response_time: Any, speed_cap: Any)
 def distance_during_response(v: Any, accel: Any, response_time: Any, speed_cap: Any) -> np.ndarray:
     """Distance covered while accelerating at ``accel`` up to the capped speed v_ρ, then cruising, for ρ.
 
-    d = v·t₁ + a·t₁²/2 + v_ρ·(ρ − t₁), with t₁ = (v_ρ − v)/a the time to reach v_ρ (t₁ = 0 when a = 0).
+    With t₁ = (v_ρ − v)/a the time to reach v_ρ: v·t₁ + a·t₁²/2 + v_ρ·(ρ − t₁) = v_ρ·ρ − (v_ρ − v)²/(2a)
+    (0 extra when a = 0, where v_ρ = v).
     """
     v = np.asarray(v, dtype=float)
     v_rho = speed_after_response(v, accel, response_time, speed_cap)
-    accel = np.asarray(accel, dtype=float)
-    safe_accel = np.where(accel > 0.0, accel, 1.0)
-    t1 = np.where(accel > 0.0, (v_rho - v) / safe_accel, 0.0)
-    return v * t1 + 0.5 * accel * t1**2 + v_rho * (response_time - t1)
+    return _distance_during_response(v, v_rho, accel, response_time)
+
+
+def _distance_during_response(v: np.ndarray, v_rho: np.ndarray, accel: Any, response_time: Any) -> np.ndarray:
+    dv = v_rho - v
+    return v_rho * response_time - dv * dv / (2.0 * np.maximum(accel, _TINY_ACCEL))
+
+
+_TINY_ACCEL = 1e-300  # [m/s²] guards a = 0, where v_ρ − v = 0 exactly
 
 
 def stopping_distance(v: Any, brake: Any) -> np.ndarray:
@@ -53,8 +59,9 @@ def worst_case_stopping_distance(v: Any, accel: Any, response_time: Any, speed_c
 
     D(v) = dist_ρ(v) + v_ρ² / (2·b).
     """
+    v = np.asarray(v, dtype=float)
     v_rho = speed_after_response(v, accel, response_time, speed_cap)
-    return distance_during_response(v, accel, response_time, speed_cap) + stopping_distance(v_rho, brake)
+    return _distance_during_response(v, v_rho, accel, response_time) + v_rho * v_rho / (2.0 * brake)
 
 
 def lon_reach(v: Any, p: Any, brake: Any) -> np.ndarray:

@@ -48,8 +48,9 @@ class VehicleFrame:
     cy: np.ndarray  # centre y [m]
     s: np.ndarray  # centre's s along its own lane [m]
     d: np.ndarray  # centre's offset from its lane's centre line, + = left [m]
-    rel_heading: np.ndarray  # heading relative to its lane [rad]
-    speed: np.ndarray  # total speed [m/s] along ``heading``
+    lane_heading: np.ndarray  # heading of its lane at its centre [rad]
+    rel_heading: np.ndarray  # direction of motion relative to its lane: atan2(lateral, longitudinal speed) [rad]
+    speed: np.ndarray  # total speed [m/s]
     v_lon: np.ndarray  # speed along the lane [m/s]
     v_lat: np.ndarray  # speed across the lane, + = left [m/s]
     half_lon: np.ndarray  # half extent of the bounding box along the lane [m]
@@ -111,13 +112,16 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
     hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
     s, d, lane_heading = network.frenet(lane, cx, cy, hint)
-    theta = _wrap(snapshot.heading - lane_heading)
-    speed = np.hypot(snapshot.speed, snapshot.lat_speed)
-    v_lon, v_lat = speed * np.cos(theta), speed * np.sin(theta)
+    # SUMO's speed is along the lane and its lateral speed across it: the lane frame's velocity as it is. (The
+    # heading minus the lane direction would read phantom lateral speed on curves stored as polylines.)
+    v_lon, v_lat = snapshot.speed, snapshot.lat_speed
+    theta = np.arctan2(v_lat, np.maximum(v_lon, 0.0))
+    speed = np.hypot(v_lon, v_lat)
     half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
     forward = np.maximum(v_lon, 0.0)
     return VehicleFrame(
-        lane=lane, edge=network.lane_edge[lane], cx=cx, cy=cy, s=s, d=d, rel_heading=theta, speed=speed,
+        lane=lane, edge=network.lane_edge[lane], cx=cx, cy=cy, s=s, d=d, lane_heading=lane_heading,
+        rel_heading=theta, speed=speed,
         v_lon=v_lon, v_lat=v_lat, half_lon=half_lon, half_lat=half_lat,
         reach=lon_reach(speed, params, params.lon_brake_min_correct),
         reach_min=lon_reach(forward, params, params.lon_brake_min),
@@ -214,7 +218,7 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
         oc = other[cross]
         s_x, d_x, foot_heading = network.frenet(lane_r[cross], frame.cx[oc], frame.cy[oc],
                                                 _cross_edge_hint(frame, ref[cross], oc, network))
-        theta = _wrap(snapshot.heading[oc] - foot_heading)
+        theta = _wrap(frame.rel_heading[oc] + frame.lane_heading[oc] - foot_heading)
         s_o[cross], d_o[cross] = s_x, d_x
         v_lon_o[cross], v_lat_o[cross] = frame.speed[oc] * np.cos(theta), frame.speed[oc] * np.sin(theta)
         half_lon_o[cross], half_lat_o[cross] = _half_extents(snapshot.length[oc], snapshot.width[oc], theta)
