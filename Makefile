@@ -21,8 +21,11 @@ $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	@touch $(STAMP)
 
+WORKERS ?= 2
+
 run: install
-	$(BIN)/sumo-rss batch scenarios/default.toml --out results
+	$(BIN)/sumo-rss batch scenarios/default.toml --workers $(WORKERS) --out results/default
+	$(BIN)/sumo-rss report results/default
 
 test: install
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)

@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, audit, nets.
+"""The ``sumo-rss`` command line: run, batch, audit, report, nets.
 
 Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
 ``--debug`` shows the traceback instead.
@@ -21,9 +21,14 @@ _RUN_EXAMPLES = """examples:
   sumo-rss run scenarios/merge_onramp.toml --seed 3 --duration 60 --out results/ --fcd
 """
 _BATCH_EXAMPLES = """examples:
-  sumo-rss batch scenarios/default.toml
-  sumo-rss batch scenarios/default.toml --seeds 0:5 --out results/sweep
-  sumo-rss batch scenarios/default.toml --seeds 1,7,42
+  sumo-rss batch scenarios/default.toml                      # -> results/default/
+  sumo-rss batch scenarios/default.toml --seeds 0:20 --workers 2
+  sumo-rss batch scenarios/highway_dense.toml scenarios/merge_onramp.toml --seeds 1,7,42 --out results/two
+  sumo-rss batch scenarios/default.toml --rss-preset ad_rss krauss --out results/presets
+  sumo-rss batch scenarios/default.toml --ray-address auto    # on a Ray cluster (shared results folder)
+"""
+_REPORT_EXAMPLES = """examples:
+  sumo-rss report results/default          # -> results/default/report.html and results/default/report/*.png
 """
 _AUDIT_EXAMPLES = """examples:
   sumo-rss audit results/merge_onramp/0/fcd.xml --net networks/merge/merge.net.xml \\
@@ -38,17 +43,12 @@ _NETS_EXAMPLES = """examples:
 
 def _parse_seeds(text: str) -> list[int]:
     """``A:B`` (A included, B excluded) or a comma list ``1,4,9``."""
+    from .batch.spec import parse_seeds
+
     try:
-        if ":" in text:
-            lo, hi = (int(part) for part in text.split(":", 1))
-            seeds = list(range(lo, hi))
-        else:
-            seeds = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected A:B or a comma list of integers, got {text!r}") from None
-    if not seeds or min(seeds) < 0:
-        raise argparse.ArgumentTypeError(f"expected at least one seed >= 0, got {text!r}")
-    return seeds
+        return list(parse_seeds(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _positive_float(text: str) -> float:
@@ -91,15 +91,28 @@ def build_parser() -> argparse.ArgumentParser:
                      help="also write SUMO's FCD trace (fcd.xml) with accelerations and lateral position/speed")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    batch = sub.add_parser("batch", parents=[common], help="run scenarios x seeds from a batch file",
-                           description="Run every scenario of a batch file with every seed, one after another. "
-                                       "Finished runs are skipped when the batch is run again; a failing run is "
-                                       "recorded (<seed>.failed/failed.json) and the batch goes on.",
+    batch = sub.add_parser("batch", parents=[common], help="run scenarios x seeds x variants",
+                           description="Run every scenario (batch files or single scenario files) with every seed "
+                                       "and every variant of the grid, in parallel. Finished runs are skipped when "
+                                       "the batch is run again; a failing run is recorded "
+                                       "(<run>.failed/failed.json) and the batch goes on.",
                            epilog=_BATCH_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
-    batch.add_argument("batch_file", type=Path, help="batch TOML file with a [batch] table")
+    batch.add_argument("specs", nargs="+", type=Path, metavar="SPEC",
+                       help="batch file ([batch] table) or scenario file")
     batch.add_argument("--seeds", type=_parse_seeds, help="A:B (B excluded) or 1,2,3 (default: the file's)")
-    batch.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
+    batch.add_argument("--workers", type=int, default=1, help="parallel local processes (default 1)")
+    batch.add_argument("--ray-address", metavar="ADDR",
+                       help="run on Ray: 'auto', 'host:port' or 'local' (needs the 'ray' extra)")
+    batch.add_argument("--rss-preset", nargs="+", choices=PRESETS, metavar="P",
+                       help="sweep these RSS presets (replaces the files' rss_preset grid)")
+    batch.add_argument("--out", type=Path, help="batch folder (default: results/<name of the first SPEC>)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    report = sub.add_parser("report", parents=[common], help="tables, PNG plots and report.html of a batch",
+                            description="Summarise a batch folder: per-scenario responsibility, violation types, "
+                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML.",
+                            epilog=_REPORT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    report.add_argument("batch_dir", type=Path, help="a batch folder (with batch_summary.csv)")
 
     audit = sub.add_parser("audit", parents=[common], help="audit a SUMO FCD file offline",
                            description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
@@ -130,6 +143,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .batch.runner import run_directory, run_one
+    from .batch.spec import Task
     from .scenario import load_scenario
 
     spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration)
@@ -143,22 +157,49 @@ def _cmd_run(args: argparse.Namespace) -> int:
         summary = run_one(spec, args.out, fcd=True if args.fcd else None, on_step=on_step)
     print(f"{spec.name} seed {spec.seed}: {summary.steps} steps, {summary.vehicles_inserted} vehicles "
           f"(peak {summary.peak_vehicles}), {summary.collisions} collisions, {summary.teleports} teleports, "
-          f"{summary.real_time_factor:.0f}x real time -> {run_directory(args.out, spec)}")
+          f"{summary.episodes} RSS episodes, {summary.real_time_factor:.0f}x real time "
+          f"-> {run_directory(args.out, Task(spec, ''))}")
     return 0
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from .batch.plan import load_batch, run_batch
+    from .batch.executors import LocalExecutor, RayExecutor
+    from .batch.orchestrator import run_batch
+    from .batch.spec import BatchSpec, load_batch
+    from .scenario import load_scenario, tomllib
 
-    batch = load_batch(args.batch_file)
-    if args.seeds is not None:
-        batch = replace(batch, seeds=tuple(args.seeds))
-    rows = run_batch(batch, args.out, progress=not args.quiet)
-    failed = [r for r in rows if r["status"] != "ok"]
-    print(f"{len(rows) - len(failed)} runs ok, {len(failed)} failed -> {args.out / 'batch_summary.csv'}")
+    tasks = []
+    for path in args.specs:
+        try:
+            is_batch = "batch" in tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+            is_batch = False  # load_scenario reports what is wrong with it
+        if is_batch:
+            spec = load_batch(path)
+        else:
+            scenario = load_scenario(path)
+            spec = BatchSpec(path, (scenario,), (scenario.seed,), {})
+        if args.seeds is not None:
+            spec = replace(spec, seeds=tuple(args.seeds))
+        if args.rss_preset:
+            spec = replace(spec, grid={**spec.grid, "rss_preset": tuple(args.rss_preset)})
+        tasks += spec.tasks()
+    out = args.out or Path("results") / args.specs[0].stem
+    executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)
+    rows = run_batch(tasks, out, executor, progress=not args.quiet)
+    failed = int((rows.status != "ok").sum())
+    print(f"{len(rows) - failed} runs ok, {failed} failed -> {out / 'batch_summary.csv'}")
     return 1 if failed else 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report.html import write_report
+
+    html = write_report(args.batch_dir)
+    print(f"report: {html}")
+    return 0
 
 
 def _cmd_audit(args: argparse.Namespace) -> int:
@@ -212,7 +253,8 @@ def _cmd_nets(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "nets": _cmd_nets}[args.command]
+    handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
+               "nets": _cmd_nets}[args.command]
     try:
         return handler(args)
     except SumoRssError as exc:

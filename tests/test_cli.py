@@ -55,28 +55,7 @@ def test_every_shipped_scenario_round_trips(tmp_path, name):
     assert replace(again, source=spec.source) == spec
 
 
-def test_batch_runs_skips_finished_runs_and_records_failures(tmp_path, valid_scenario):
-    write_scenario(tmp_path, valid_scenario, "good.toml")
-    write_scenario(tmp_path, dict(valid_scenario, sumo={"extra_args": ["--bogus-option", "1"]}), "bad.toml")
-    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["good.toml", "bad.toml"]\nseeds = [0, 1]\n')
-    out = tmp_path / "results"
-    proc = _cli("batch", str(tmp_path / "batch.toml"), "--out", str(out), "--quiet")
-    assert proc.returncode == 1 and "2 runs ok, 2 failed" in proc.stdout
-    rows = (out / "batch_summary.csv").read_text().splitlines()
-    assert rows[0].startswith("scenario,seed,status") and len(rows) == 5
-    assert [r.split(",")[:3] for r in rows[1:]] == [["good", "0", "ok"], ["good", "1", "ok"], ["bad", "0", "failed"],
-                                                    ["bad", "1", "failed"]]
-    failure = json.loads((out / "bad" / "0.failed" / "failed.json").read_text())
-    assert "SessionError" in failure["error"] and "Traceback" in failure["traceback"]
-    assert not (out / "bad" / "0").exists()
-    finished = (out / "good" / "0" / "summary.json").stat().st_mtime_ns
-    again = _cli("batch", str(tmp_path / "batch.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
-    assert "3 runs ok, 3 failed" in again.stdout
-    assert (out / "good" / "0" / "summary.json").stat().st_mtime_ns == finished  # skipped, not rerun
-    assert (out / "good" / "2" / "summary.json").is_file()
-
-
-@pytest.mark.parametrize("command", ["run", "batch", "nets"])
+@pytest.mark.parametrize("command", ["run", "batch", "audit", "report", "nets"])
 def test_every_command_has_help_with_examples(command):
     proc = _cli(command, "--help")
     assert proc.returncode == 0 and "examples:" in proc.stdout and f"sumo-rss {command}" in proc.stdout

@@ -1,6 +1,12 @@
-"""Run one scenario with one seed into its own run directory, written atomically."""
+"""Run one task (scenario variant + seed) into its own run directory, written atomically.
+
+A run directory ``<out>/<scenario>[__<variant>]/<seed>/`` holds: ``manifest.json`` (versions, seed, parameter
+hash), ``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the
+ego's episodes step by step), the resolved ``scenario.toml``, the SUMO inputs/outputs and logs.
+"""
 from __future__ import annotations
 
+import csv
 import json
 import os
 import platform
@@ -20,15 +26,21 @@ from ..rss.auditor import Auditor, CollisionInput, ParamResolver
 from ..rss.params import MODEL_VERSION
 from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
+from ..sim.snapshot import EGO_CLASS
+from .spec import Task
 
 SUMMARY_FILE = "summary.json"
+MANIFEST_FILE = "manifest.json"
+EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lat_pos_m")
 
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What ``summary.json`` holds for one run. Times in s."""
+    """What ``summary.json`` holds for one run. Times in s, speeds in m/s."""
 
+    run_id: str
     scenario: str
+    variant: str
     seed: int
     status: str  # 'ok'
     steps: int
@@ -42,6 +54,8 @@ class RunSummary:
     episodes: int
     violations: int
     responsible_episodes: dict[str, int]  # responsible (a/b/both/none) → episodes
+    ego_responsible_episodes: int  # episodes in which the ego had a violation
+    ego_mean_speed_ms: float | None  # over the steps the ego was on the road
     ego_id: str | None
     ego_controller: str | None
     collision_events: list[dict] = field(default_factory=list)
@@ -56,9 +70,9 @@ def param_resolver(spec: ScenarioSpec) -> ParamResolver:
     return ParamResolver(spec.rss.preset, spec.rss.role_overrides, spec.rss.vtype_overrides, dynamics)
 
 
-def run_directory(out_dir: Path, spec: ScenarioSpec) -> Path:
-    """``<out>/<scenario>/<seed>``."""
-    return Path(out_dir) / spec.name / str(spec.seed)
+def run_directory(out_dir: Path, task: Task) -> Path:
+    """``<out>/<scenario>[__<variant>]/<seed>``."""
+    return Path(out_dir) / task.run_id
 
 
 def versions() -> dict[str, str]:
@@ -68,9 +82,9 @@ def versions() -> dict[str, str]:
             "python": platform.python_version()}
 
 
-def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
+def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool | None = None,
             on_step: Callable[[float], None] | None = None) -> RunSummary:
-    """Co-simulate ``spec`` (its own seed), audit every step and write ``<out>/<scenario>/<seed>/``.
+    """Co-simulate ``spec`` (its own seed), audit every step and write its run directory.
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
     directory either holds a whole run or does not exist. ``on_step(simulated_s)`` is called after every step.
@@ -80,19 +94,30 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
     if spec.ego is not None and spec.ego.controller != "sumo":
         raise SumoRssError(f"{spec.source}: ego.controller: {spec.ego.controller!r} needs the EPSILON planner, "
                            "which this version does not include yet; use controller = \"sumo\"")
-    final = run_directory(out_dir, spec)
+    task = Task(spec, variant)
+    final = run_directory(out_dir, task)
     final.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
     try:
         (work / "scenario.toml").write_bytes(tomli_w.dumps(spec.to_toml_data()).encode("utf-8"))
+        run_versions = versions()
+        write_json(work / MANIFEST_FILE, {"run_id": task.run_id, "scenario": spec.name, "variant": variant,
+                                          "seed": spec.seed, "parameter_hash": task.parameter_hash(),
+                                          "versions": run_versions})
         started = time.perf_counter()
-        auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), f"{spec.name}/{spec.seed}")
+        auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), task.run_id,
+                          trace_class=EGO_CLASS)
+        ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
                 seen = len(session.collisions)
                 snapshot = session.step()
                 auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
                                            for c in session.collisions[seen:]])
+                if session.ego_on_road:
+                    k = snapshot.index_of(session.ego_id)
+                    ego_rows.append((snapshot.time, snapshot.x[k], snapshot.y[k], snapshot.speed[k],
+                                     snapshot.accel[k], snapshot.lane_id[k], snapshot.lat_pos[k]))
                 if on_step is not None:
                     on_step(session.steps * spec.step_s)
         audit = auditor.finish()
@@ -100,21 +125,36 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, fcd: bool | None = None,
         simulated = session.steps * spec.step_s
         audit.to_csv(work)
         write_json(work / "rss_params.json", audit.params)
+        _write_ego_trace(work / "ego_trace.csv", ego_rows)
+        episodes = audit.episodes
+        ego_blamed = ((episodes.class_a == EGO_CLASS) & episodes.responsible.isin(["a", "both"])) | \
+            ((episodes.class_b == EGO_CLASS) & episodes.responsible.isin(["b", "both"]))
         summary = RunSummary(
-            scenario=spec.name, seed=spec.seed, status="ok", steps=session.steps, sim_time_s=simulated,
-            wall_time_s=wall, real_time_factor=simulated / wall if wall > 0 else float("inf"),
+            run_id=task.run_id, scenario=spec.name, variant=variant, seed=spec.seed, status="ok",
+            steps=session.steps, sim_time_s=simulated, wall_time_s=wall,
+            real_time_factor=simulated / wall if wall > 0 else float("inf"),
             vehicles_inserted=session.vehicles_inserted, peak_vehicles=session.peak_vehicles,
-            collisions=len(session.collisions), teleports=session.teleports, ego_id=session.ego_id,
-            episodes=len(audit.episodes), violations=len(audit.violations),
-            responsible_episodes={k: int(v) for k, v in audit.episodes["responsible"].value_counts().sort_index().items()},
-            ego_controller=spec.ego.controller if spec.ego else None,
-            collision_events=[asdict(c) for c in session.collisions], versions=versions())
+            collisions=len(session.collisions), teleports=session.teleports, episodes=len(episodes),
+            violations=len(audit.violations),
+            responsible_episodes={k: int(v) for k, v in episodes["responsible"].value_counts().sort_index().items()},
+            ego_responsible_episodes=int(ego_blamed.sum()),
+            ego_mean_speed_ms=float(sum(r[3] for r in ego_rows) / len(ego_rows)) if ego_rows else None,
+            ego_id=session.ego_id, ego_controller=spec.ego.controller if spec.ego else None,
+            collision_events=[asdict(c) for c in session.collisions], versions=run_versions)
         write_json(work / SUMMARY_FILE, asdict(summary))
         _replace_dir(work, final)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
     return summary
+
+
+def _write_ego_trace(path: Path, rows: list[tuple]) -> None:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(EGO_TRACE_COLUMNS)
+        writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{lat:.6f}")
+                         for t, x, y, v, a, lane, lat in rows)
 
 
 def write_json(path: Path, data: object) -> None:

@@ -25,6 +25,8 @@ EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a",
 VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
                      "worst_actual", "excess", "t_start_s", "t_end_s"]
 COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
+PAIR_STATE_COLUMNS = ["run_id", "episode_key", "time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m",
+                      "dangerous"]
 CSV_FLOAT_FORMAT = "%.6f"
 
 
@@ -77,13 +79,16 @@ class AuditResult:
     violations: pd.DataFrame
     collisions: pd.DataFrame
     params: dict[str, dict[str, float]]
+    pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
 
     def to_csv(self, directory: str | Path) -> None:
-        """Write episodes.csv, violations.csv and collisions.csv atomically (temp file + rename)."""
+        """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced) atomically."""
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
-        for name, frame in (("episodes", self.episodes), ("violations", self.violations),
-                            ("collisions", self.collisions)):
+        frames = [("episodes", self.episodes), ("violations", self.violations), ("collisions", self.collisions)]
+        if self.pair_states is not None:
+            frames.append(("pair_states", self.pair_states))
+        for name, frame in frames:
             tmp = directory / f".{name}.csv.tmp"
             frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
             os.replace(tmp, directory / f"{name}.csv")
@@ -92,8 +97,13 @@ class AuditResult:
 class Auditor:
     """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
 
-    def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = ""):
+    def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
+                 trace_class: str | None = None):
+        """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
+        this class (e.g. 'ego') in ``AuditResult.pair_states``."""
         self.network = network
+        self.trace_class = trace_class
+        self._traces: list[pd.DataFrame] = []
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.last_situations: PairSituations | None = None
@@ -116,11 +126,25 @@ class Auditor:
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, vclass=snapshot.vclass,
             accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
+        if self.trace_class is not None:
+            self._trace(snapshot.time, keys, situations)
         self.record_collisions(collisions)
         self._prev_ids = set(snapshot.ids.tolist())
         self.last_situations = situations
         self.pair_steps += len(situations)
         return situations
+
+    def _trace(self, time: float, keys: np.ndarray, situations: PairSituations) -> None:
+        traced, episode_keys = self._tracker.open_episodes(self.trace_class)
+        if not episode_keys:
+            return
+        order = np.argsort(keys)
+        rows = order[np.searchsorted(keys, traced, sorter=order)]
+        self._traces.append(pd.DataFrame({
+            "run_id": self.run_id, "episode_key": episode_keys, "time_s": time,
+            "lon_gap_m": situations.lon_gap[rows], "lon_d_min_m": situations.lon_d_min[rows],
+            "lat_gap_m": situations.lat_gap[rows], "lat_d_min_m": situations.lat_d_min[rows],
+            "dangerous": situations.dangerous[rows]}))
 
     def record_collisions(self, collisions: Iterable[CollisionInput]) -> None:
         """Join collisions of the current step to their pairs' open episodes (blame = the episode's)."""
@@ -171,4 +195,8 @@ class Auditor:
         violations = violations.sort_values(["t_start_s", "episode_key", "vehicle_id", "constraint"], kind="stable",
                                             ignore_index=True)
         collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)
-        return AuditResult(episodes, violations, collisions, self.params.resolved())
+        pair_states = None
+        if self.trace_class is not None:
+            pair_states = pd.concat(self._traces, ignore_index=True) if self._traces else \
+                pd.DataFrame(columns=PAIR_STATE_COLUMNS)
+        return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states)

@@ -133,6 +133,12 @@ class ResponsibilityTracker:
         self._prev_lat_safe = sit.lat_safe[order]
         self._last_time = step.time
 
+    def open_episodes(self, vclass: str) -> tuple[np.ndarray, list[str]]:
+        """(pair keys, episode keys) of the open episodes that involve a car of class ``vclass``."""
+        e = self._open
+        idx = np.flatnonzero((e.a_class == vclass) | (e.b_class == vclass))
+        return e.keys[idx], [self._episode_key(int(i)) for i in idx]
+
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""
         hit = np.flatnonzero(self._open.keys == pair_key)

@@ -1,0 +1,57 @@
+"""Batch outputs: one summary row per run and the runs' CSVs concatenated with their run keys."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from ..rss.auditor import CSV_FLOAT_FORMAT
+from .executors import FAILED_FILE, failure_directory
+from .runner import SUMMARY_FILE, run_directory
+from .spec import Task
+
+SUMMARY_COLUMNS = ["run_id", "scenario", "variant", "seed", "status", "sim_time_s", "wall_time_s",
+                   "real_time_factor", "steps", "vehicles_inserted", "peak_vehicles", "episodes", "violations",
+                   "collisions", "teleports", "ego_responsible_episodes", "ego_mean_speed_ms", "error"]
+CONCATENATED = ("episodes", "violations", "collisions", "pair_states")
+
+
+def summary_row(out_dir: Path, task: Task) -> dict:
+    """The batch_summary.csv row of a task: from its summary.json, its failed.json, or 'missing'."""
+    base = {"run_id": task.run_id, "scenario": task.spec.name, "variant": task.variant, "seed": task.spec.seed}
+    summary = run_directory(out_dir, task) / SUMMARY_FILE
+    if summary.is_file():
+        data = json.loads(summary.read_text(encoding="utf-8"))
+        return base | {k: data.get(k) for k in SUMMARY_COLUMNS if k not in base and k != "error"} | {"error": ""}
+    failed = failure_directory(out_dir, task) / FAILED_FILE
+    if failed.is_file():
+        return base | {"status": "failed", "error": json.loads(failed.read_text(encoding="utf-8"))["error"]}
+    return base | {"status": "missing", "error": "not run (interrupted?)"}
+
+
+def write_batch_outputs(out_dir: Path, tasks: list[Task]) -> pd.DataFrame:
+    """batch_summary.csv and the concatenated episodes / violations / collisions / pair_states CSVs."""
+    rows = pd.DataFrame([summary_row(out_dir, t) for t in tasks], columns=SUMMARY_COLUMNS)
+    _write_csv(rows, out_dir / "batch_summary.csv")
+    ok = [t for t, status in zip(tasks, rows.status) if status == "ok"]
+    for name in CONCATENATED:
+        parts = []
+        for task in ok:
+            path = run_directory(out_dir, task) / f"{name}.csv"
+            if path.is_file():
+                frame = pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str})
+                frame.insert(1, "scenario", task.spec.name)
+                frame.insert(2, "variant", task.variant)
+                frame.insert(3, "seed", task.spec.seed)
+                parts.append(frame)
+        if parts:
+            _write_csv(pd.concat(parts, ignore_index=True), out_dir / f"{name}.csv")
+    return rows
+
+
+def _write_csv(frame: pd.DataFrame, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+    os.replace(tmp, path)

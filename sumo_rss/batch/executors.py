@@ -1,0 +1,144 @@
+"""Where batch tasks run: local processes (default) or a Ray cluster.
+
+Both run :func:`execute` per task, which writes the run directory (or ``<run>.failed/failed.json`` with the
+traceback) and never raises. The local executor starts one spawned process per task, at most ``workers`` at a
+time: libsumo is a process-wide singleton, and a task that crashes SUMO takes down only its own process. Each
+child dies with its parent (Linux ``PR_SET_PDEATHSIG``), so a killed batch leaves no orphan simulations.
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import multiprocessing as mp
+import shutil
+import signal
+import sys
+import traceback
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from multiprocessing.connection import wait
+from pathlib import Path
+
+from ..errors import SumoRssError
+from .runner import SUMMARY_FILE, run_directory, run_one, write_json
+from .spec import Task
+
+FAILED_FILE = "failed.json"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    run_id: str
+    status: str  # 'ok' | 'failed'
+    error: str = ""
+
+
+def failure_directory(out_dir: Path, task: Task) -> Path:
+    run_dir = run_directory(out_dir, task)
+    return run_dir.with_name(f"{run_dir.name}.failed")
+
+
+def record_failure(out_dir: Path, task: Task, error: str, trace: str) -> Outcome:
+    folder = failure_directory(out_dir, task)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / FAILED_FILE, {"run_id": task.run_id, "scenario": task.spec.name, "variant": task.variant,
+                                      "seed": task.spec.seed, "error": error, "traceback": trace})
+    return Outcome(task.run_id, "failed", error)
+
+
+def execute(task: Task, out_dir: str | Path) -> Outcome:
+    """Run one task; a failure is recorded with its traceback, never raised (Ctrl-C still is)."""
+    out_dir = Path(out_dir)
+    shutil.rmtree(failure_directory(out_dir, task), ignore_errors=True)
+    try:
+        run_one(task.spec, out_dir, variant=task.variant)
+    except Exception as exc:
+        return record_failure(out_dir, task, f"{type(exc).__name__}: {exc}", traceback.format_exc())
+    return Outcome(task.run_id, "ok")
+
+
+def _die_with_parent() -> None:
+    if sys.platform.startswith("linux"):
+        pr_set_pdeathsig = 1
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+
+
+def _child(task: Task, out_dir: str) -> None:
+    _die_with_parent()
+    outcome = execute(task, out_dir)
+    raise SystemExit(0 if outcome.status == "ok" else 1)
+
+
+class LocalExecutor:
+    """At most ``workers`` spawned processes, one task each."""
+
+    def __init__(self, workers: int = 1):
+        if workers < 1:
+            raise SumoRssError(f"--workers: expected an integer >= 1, got {workers}")
+        self.workers = workers
+
+    def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
+        ctx = mp.get_context("spawn")
+        pending = deque(tasks)
+        running: dict[object, tuple[mp.process.BaseProcess, Task]] = {}
+        try:
+            while pending or running:
+                while pending and len(running) < self.workers:
+                    task = pending.popleft()
+                    proc = ctx.Process(target=_child, args=(task, str(out_dir)), name=task.run_id)
+                    proc.start()
+                    running[proc.sentinel] = (proc, task)
+                for sentinel in wait(list(running)):
+                    proc, task = running.pop(sentinel)
+                    proc.join()
+                    on_result(self._outcome(proc, task, out_dir))
+        except BaseException:
+            for proc, _ in running.values():
+                proc.kill()
+            for proc, _ in running.values():
+                proc.join()
+            raise
+
+    @staticmethod
+    def _outcome(proc: mp.process.BaseProcess, task: Task, out_dir: Path) -> Outcome:
+        if (run_directory(out_dir, task) / SUMMARY_FILE).is_file() and proc.exitcode == 0:
+            return Outcome(task.run_id, "ok")
+        if (failure_directory(out_dir, task) / FAILED_FILE).is_file():
+            return Outcome(task.run_id, "failed",
+                           json.loads((failure_directory(out_dir, task) / FAILED_FILE).read_text())["error"])
+        how = f"killed by signal {-proc.exitcode}" if proc.exitcode and proc.exitcode < 0 else \
+            f"exit code {proc.exitcode}"
+        return record_failure(out_dir, task, f"worker process died ({how}); SUMO crashed?", "")
+
+
+class RayExecutor:
+    """Tasks as Ray remote functions on the cluster at ``address`` ('auto', 'host:port', or 'local' for a
+    fresh local instance). The output folder must be shared by all nodes."""
+
+    def __init__(self, address: str):
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise SumoRssError("--ray-address needs Ray: pip install 'sumo-rss[ray]'") from None
+        self.address = address
+
+    def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(address=None if self.address == "local" else self.address, log_to_driver=False)
+        remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+        futures = {remote.remote(task, str(out_dir)): task for task in tasks}
+        try:
+            while futures:
+                done, _ = ray.wait(list(futures), num_returns=1)
+                task = futures.pop(done[0])
+                try:
+                    on_result(ray.get(done[0]))
+                except ray.exceptions.RayError as exc:  # the worker died: SUMO crashed, node lost, ...
+                    on_result(record_failure(out_dir, task, f"{type(exc).__name__}: {exc}", ""))
+        except BaseException:
+            for future in futures:
+                ray.cancel(future, force=True)
+            raise

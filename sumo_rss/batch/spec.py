@@ -1,0 +1,154 @@
+"""Batch files: scenarios x seeds x variants (a grid of parameter sweeps), expanded into run tasks.
+
+```toml
+[batch]
+scenarios = ["highway_dense.toml", "merge_onramp.toml"]   # relative to this file
+seeds = [0, 1]                                            # or "0:20" (20 excluded)
+
+[batch.grid]                                              # optional: every combination is a variant
+rss_preset = ["ad_rss", "krauss"]
+demand_scale = [0.5, 1.0]                                 # multiplies every flow's rate
+controller = ["sumo"]                                     # the ego's controller
+```
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..errors import ScenarioError
+from ..rss.params import PRESETS, resolve_params
+from ..scenario import CONTROLLERS, ScenarioSpec, load_scenario, tomllib
+from ..validation import TableReader
+
+GRID_KEYS = ("rss_preset", "demand_scale", "controller")
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run: a scenario (with the variant applied) and a seed."""
+
+    spec: ScenarioSpec
+    variant: str  # '' for the scenario as written, else e.g. 'rss_preset=krauss+demand_scale=0.5'
+
+    @property
+    def run_id(self) -> str:
+        """``<scenario>[__<variant>]/<seed>``: the run's folder below the batch folder, and its key in CSVs."""
+        return f"{self.spec.name}{'__' + self.variant if self.variant else ''}/{self.spec.seed}"
+
+    def parameter_hash(self) -> str:
+        """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing."""
+        text = json.dumps(self.spec.to_toml_data(), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class BatchSpec:
+    source: Path
+    scenarios: tuple[ScenarioSpec, ...]
+    seeds: tuple[int, ...]
+    grid: dict[str, tuple]  # key of GRID_KEYS → values; empty for no sweep
+
+    def tasks(self) -> list[Task]:
+        """Every (scenario, variant, seed), in that nesting order."""
+        variants = [dict(zip(self.grid, values)) for values in itertools.product(*self.grid.values())] \
+            if self.grid else [{}]
+        return [Task(apply_variant(spec, v).with_overrides(seed=seed), variant_name(v))
+                for spec in self.scenarios for v in variants for seed in self.seeds]
+
+
+def variant_name(values: dict) -> str:
+    """E.g. 'rss_preset=krauss+demand_scale=0.5' (no commas: SUMO splits file lists on them)."""
+    return "+".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
+
+
+def apply_variant(spec: ScenarioSpec, values: dict) -> ScenarioSpec:
+    """The scenario with the variant's overrides; raises ScenarioError for an impossible combination."""
+    if "rss_preset" in values:
+        spec = replace(spec, rss=replace(spec.rss, preset=values["rss_preset"]))
+        for vt in spec.demand.vtypes:  # the overrides must still be consistent under the new preset
+            try:
+                resolve_params(spec.rss.preset, "background", vt.id, role_overrides=spec.rss.role_overrides,
+                               vtype_overrides=spec.rss.vtype_overrides, tau=vt.tau, decel=vt.decel)
+            except ValueError as exc:
+                raise ScenarioError(spec.source, "rss", f"inconsistent under preset {spec.rss.preset!r}: {exc}",
+                                    has_got=False) from exc
+    if "demand_scale" in values:
+        scale = values["demand_scale"]
+        flows = tuple(replace(f, veh_per_hour=f.veh_per_hour * scale if f.veh_per_hour is not None else None,
+                              probability=min(1.0, f.probability * scale) if f.probability is not None else None)
+                      for f in spec.demand.flows)
+        spec = replace(spec, demand=replace(spec.demand, flows=flows))
+    if "controller" in values and spec.ego is not None:
+        spec = replace(spec, ego=replace(spec.ego, controller=values["controller"]))
+    return spec
+
+
+def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, ...]:
+    """``[0, 1, 5]``, ``"0:20"`` (20 excluded) or ``"1,7,42"`` → seeds; ValueError (or the reader's
+    ScenarioError) otherwise."""
+    def fail() -> Exception:
+        expected = "expected a list of integers >= 0, 'A:B' or 'a,b,c'"
+        return reader.error("seeds", expected, value) if reader else ValueError(f"{expected}, got {value!r}")
+
+    try:
+        if isinstance(value, str) and ":" in value:
+            lo, hi = (int(x) for x in value.split(":", 1))
+            seeds = list(range(lo, hi))
+        elif isinstance(value, str):
+            seeds = [int(x) for x in value.split(",")]
+        elif isinstance(value, list) and all(isinstance(s, int) and not isinstance(s, bool) for s in value):
+            seeds = list(value)
+        else:
+            raise fail()
+    except ValueError:
+        raise fail() from None
+    if not seeds or min(seeds) < 0:
+        raise fail()
+    return tuple(dict.fromkeys(seeds))
+
+
+def load_batch(path: str | Path) -> BatchSpec:
+    """Read and validate a batch file; scenario paths are relative to it."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(path, "", "batch file not found", has_got=False)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
+    top = TableReader(data, path)
+    batch = top.table("batch", required=True)
+    files = batch.string_list("scenarios")
+    seeds = parse_seeds(batch.raw("seeds", [0]), batch)
+    grid_t = batch.table("grid")
+    grid = {}
+    for key, kind in (("rss_preset", PRESETS), ("controller", CONTROLLERS)):
+        if grid_t.has(key):
+            grid[key] = grid_t.string_list(key)
+            bad = [v for v in grid[key] if v not in kind]
+            if bad:
+                raise grid_t.error(key, f"expected values among {', '.join(kind)}", bad)
+    if grid_t.has("demand_scale"):
+        scales = grid_t.raw("demand_scale")
+        if not isinstance(scales, list) or not scales or not all(
+                isinstance(s, (int, float)) and not isinstance(s, bool) and 0 < s <= 10 for s in scales):
+            raise grid_t.error("demand_scale", "expected a list of numbers in (0, 10]", scales)
+        grid["demand_scale"] = tuple(float(s) for s in scales)
+    grid_t.finish()
+    batch.finish()
+    top.finish()
+    specs = []
+    for i, name in enumerate(files):
+        scenario_file = path.parent / name
+        if not scenario_file.is_file():
+            raise batch.error(f"scenarios[{i}]", f"expected an existing scenario file (looked for {scenario_file})",
+                              name)
+        specs.append(load_scenario(scenario_file))
+    names = [s.name for s in specs]
+    if len(set(names)) != len(names):
+        raise batch.error("scenarios", "expected scenarios with distinct names (their results folders)", names)
+    return BatchSpec(path, tuple(specs), seeds, {k: tuple(v) for k, v in grid.items()})

@@ -1,0 +1,101 @@
+"""``sumo-rss report``: PNG plots under ``<batch>/report/`` and one self-contained ``report.html``."""
+from __future__ import annotations
+
+import base64
+import html
+import os
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import pandas as pd
+
+from ..errors import SumoRssError
+from .plots import ego_speed, pair_timeline, responsibility_bars, violation_histogram
+from .summary import read_batch_csv, responsibility_table, violation_table
+
+
+def write_report(batch_dir: Path) -> Path:
+    """Write the PNGs and report.html of a batch folder; returns the HTML path."""
+    batch_dir = Path(batch_dir)
+    summary = read_batch_csv(batch_dir, "batch_summary")
+    if summary.empty:
+        raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
+    episodes = read_batch_csv(batch_dir, "episodes")
+    violations = read_batch_csv(batch_dir, "violations")
+    states = read_batch_csv(batch_dir, "pair_states")
+    figures_dir = batch_dir / "report"
+    figures_dir.mkdir(exist_ok=True)
+    figures = {"responsibility": responsibility_bars(responsibility_table(episodes))[0],
+               "violations": violation_histogram(violation_table(violations))[0]}
+    timeline = longest_traced_episode(episodes, states)
+    if timeline is not None:
+        figures["pair_timeline"] = pair_timeline(states, timeline)[0]
+    traces = ego_traces(batch_dir, summary)
+    if traces:
+        figures["ego_speed"] = ego_speed(traces)[0]
+    images = {}
+    for name, fig in figures.items():
+        path = figures_dir / f"{name}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
+    page = _page(batch_dir, summary, responsibility_table(episodes), violation_table(violations), images)
+    out = batch_dir / "report.html"
+    tmp = out.with_name(".report.html.tmp")
+    tmp.write_text(page, encoding="utf-8")
+    os.replace(tmp, out)
+    return out
+
+
+def longest_traced_episode(episodes: pd.DataFrame, states: pd.DataFrame) -> pd.Series | None:
+    """The episode with the most traced steps (ego episodes are traced), preferring ones ending in a collision."""
+    if episodes.empty or states.empty:
+        return None
+    steps = states.groupby(["run_id", "episode_key"]).size().rename("steps").reset_index()
+    traced = episodes.merge(steps, on=["run_id", "episode_key"])
+    if traced.empty:
+        return None
+    traced["collided"] = traced.collision.astype(str) == "True"
+    return traced.sort_values(["collided", "steps", "run_id", "episode_key"],
+                              ascending=[False, False, True, True]).iloc[0]
+
+
+def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The ego trace of the first successful seed of every scenario variant."""
+    traces = {}
+    ok = summary[summary.status == "ok"]
+    for (scenario, variant), group in ok.groupby(["scenario", "variant"], sort=True):
+        run_id = group.sort_values("seed").run_id.iloc[0]
+        path = batch_dir / run_id / "ego_trace.csv"
+        if path.is_file():
+            trace = pd.read_csv(path)
+            if not trace.empty:
+                traces[f"{scenario}{' [' + variant + ']' if variant else ''} seed {group.seed.min()}"] = trace
+    return traces
+
+
+def _page(batch_dir: Path, summary: pd.DataFrame, responsibility: pd.DataFrame, violations: pd.DataFrame,
+          images: dict[str, str]) -> str:
+    ok = int((summary.status == "ok").sum())
+    parts = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        f"<title>sumo_rss report: {html.escape(batch_dir.name)}</title>",
+        "<style>body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse;"
+        "font-size:small}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
+        "img{max-width:100%}</style></head><body>",
+        f"<h1>sumo_rss batch report: {html.escape(batch_dir.name)}</h1>",
+        f"<p>{ok} of {len(summary)} runs ok. Units: SI (s, m/s). Responsibility follows RSS "
+        "(see docs/outputs.md): a car is responsible for an episode if it broke its proper response in it.</p>",
+        "<h2>Responsibility per scenario</h2>", responsibility.to_html(),
+    ]
+    for name, title in (("responsibility", ""), ("violations", "Violations by rule"),
+                        ("pair_timeline", "A danger episode of the ego, step by step"),
+                        ("ego_speed", "Ego speed")):
+        if name in images:
+            if title:
+                parts.append(f"<h2>{title}</h2>")
+            parts.append(f"<img alt='{name}' src='data:image/png;base64,{images[name]}'>")
+    if not violations.empty:
+        parts += ["<h3>Violations table</h3>", violations.to_html()]
+    parts += ["<h2>Runs</h2>", summary.to_html(index=False, float_format=lambda v: f"{v:.3f}"), "</body></html>"]
+    return "\n".join(parts)

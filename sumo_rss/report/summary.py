@@ -1,0 +1,50 @@
+"""Batch tables: who was responsible, per scenario, and which rules were broken (from the batch CSVs)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ..sim.snapshot import EGO_CLASS
+
+RESPONSIBILITY_CATEGORIES = ["ego", "ego & background", "background", "none"]
+
+
+def read_batch_csv(batch_dir: Path, name: str) -> pd.DataFrame:
+    """A concatenated batch CSV (empty frame if the batch produced none)."""
+    path = Path(batch_dir) / f"{name}.csv"
+    if not path.is_file():
+        return pd.DataFrame()
+    return pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str, "variant": str})
+
+
+def run_label(frame: pd.DataFrame) -> pd.Series:
+    """'scenario' or 'scenario [variant]' per row."""
+    variant = frame["variant"].astype(str)
+    return frame["scenario"].astype(str) + variant.where(variant == "", " [" + variant + "]")
+
+
+def responsibility_category(episodes: pd.DataFrame) -> pd.Series:
+    """Per episode: whose violation made it someone's responsibility (one of RESPONSIBILITY_CATEGORIES)."""
+    a_blamed = episodes.responsible.isin(["a", "both"])
+    b_blamed = episodes.responsible.isin(["b", "both"])
+    ego = (a_blamed & (episodes.class_a == EGO_CLASS)) | (b_blamed & (episodes.class_b == EGO_CLASS))
+    background = (a_blamed & (episodes.class_a != EGO_CLASS)) | (b_blamed & (episodes.class_b != EGO_CLASS))
+    return pd.Series(
+        [("ego & background" if g else "ego") if e else ("background" if g else "none")
+         for e, g in zip(ego, background)], index=episodes.index, dtype=object)
+
+
+def responsibility_table(episodes: pd.DataFrame) -> pd.DataFrame:
+    """Episodes per run label (rows) and responsibility category (columns)."""
+    if episodes.empty:
+        return pd.DataFrame(columns=RESPONSIBILITY_CATEGORIES)
+    table = pd.crosstab(run_label(episodes), responsibility_category(episodes))
+    return table.reindex(columns=RESPONSIBILITY_CATEGORIES, fill_value=0)
+
+
+def violation_table(violations: pd.DataFrame) -> pd.DataFrame:
+    """Violations per constraint (rows) and run label (columns)."""
+    if violations.empty:
+        return pd.DataFrame()
+    return pd.crosstab(violations.constraint, run_label(violations))

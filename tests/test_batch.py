@@ -1,0 +1,171 @@
+"""Batches: parallel runs equal single runs, failures are recorded, a killed batch resumes cleanly, Ray gives
+the same results, and the report plots exactly what the CSVs say."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+
+from conftest import REPO, write_scenario
+from sumo_rss import load_scenario
+from sumo_rss.batch.executors import LocalExecutor, RayExecutor
+from sumo_rss.batch.orchestrator import run_batch
+from sumo_rss.batch.runner import run_one
+from sumo_rss.batch.spec import BatchSpec, Task, load_batch
+from sumo_rss.report.html import write_report
+from sumo_rss.report.summary import read_batch_csv, responsibility_category, responsibility_table
+
+AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", "ego_trace.csv")
+
+
+def _cli(*args: str, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
+                          check=False, **kw)
+
+
+@pytest.fixture
+def two_scenarios(tmp_path, valid_scenario):
+    """Two 20 s highway scenarios (different demand) and a batch file over seeds 0 and 1."""
+    valid_scenario["duration_s"] = 20.0
+    write_scenario(tmp_path, valid_scenario, "light.toml")
+    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 3000
+    write_scenario(tmp_path, valid_scenario, "busy.toml")
+    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["light.toml", "busy.toml"]\nseeds = [0, 1]\n')
+    return tmp_path
+
+
+def test_two_worker_batch_equals_running_each_alone(two_scenarios, tmp_path):
+    batch = load_batch(two_scenarios / "batch.toml")
+    rows = run_batch(batch.tasks(), tmp_path / "batch", LocalExecutor(workers=2), progress=False)
+    assert list(rows.status) == ["ok"] * 4
+    for task in batch.tasks():
+        run_one(task.spec, tmp_path / "alone")
+        for name in AUDIT_FILES:
+            together = (tmp_path / "batch" / task.run_id / name).read_bytes()
+            assert together == (tmp_path / "alone" / task.run_id / name).read_bytes(), (task.run_id, name)
+    # The batch CSVs are the runs' CSVs with their keys.
+    episodes = read_batch_csv(tmp_path / "batch", "episodes")
+    per_run = sum(len(pd.read_csv(tmp_path / "batch" / t.run_id / "episodes.csv")) for t in batch.tasks())
+    assert len(episodes) == per_run > 0
+    assert list(episodes.columns[:4]) == ["run_id", "scenario", "variant", "seed"]
+    summary = read_batch_csv(tmp_path / "batch", "batch_summary")
+    assert summary.episodes.sum() == per_run and (summary.ego_mean_speed_ms > 5).all()
+
+
+def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_scenario, tmp_path):
+    valid_scenario["duration_s"] = 10.0
+    valid_scenario["sumo"] = {"extra_args": ["--bogus-option", "1"]}  # SUMO refuses to start
+    write_scenario(two_scenarios, valid_scenario, "bad.toml")
+    (two_scenarios / "mixed.toml").write_text('[batch]\nscenarios = ["light.toml", "bad.toml"]\nseeds = [0, 1]\n')
+    out = tmp_path / "out"
+    proc = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--workers", "2", "--quiet")
+    assert proc.returncode == 1 and "2 runs ok, 2 failed" in proc.stdout
+    summary = read_batch_csv(out, "batch_summary")
+    assert list(summary.status) == ["ok", "ok", "failed", "failed"]
+    failure = json.loads((out / "bad" / "0.failed" / "failed.json").read_text())
+    assert "SessionError" in failure["error"] and "Traceback" in failure["traceback"]
+    assert not (out / "bad" / "0").exists()
+    finished = (out / "light" / "0" / "summary.json").stat().st_mtime_ns
+    again = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
+    assert "3 runs ok, 3 failed" in again.stdout
+    assert (out / "light" / "0" / "summary.json").stat().st_mtime_ns == finished  # skipped, not rerun
+
+
+def test_a_killed_batch_resumes_without_duplicates_or_partial_files(two_scenarios, tmp_path):
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "sumo_rss", "batch", str(two_scenarios / "batch.toml"), "--out", str(out),
+           "--quiet"]
+    parent = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
+        time.sleep(0.05)
+    while not list(out.glob("*/.*.partial")) and time.time() < deadline:  # the next run is under way
+        time.sleep(0.01)
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    finished_before = len(list(out.glob("*/*/summary.json")))
+    assert 1 <= finished_before < 4
+    time.sleep(0.5)  # the orphaned child is killed with its parent (PR_SET_PDEATHSIG)
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, check=False)
+    assert proc.returncode == 0 and "4 runs ok, 0 failed" in proc.stdout
+    assert len(list(out.glob("*/*/summary.json"))) == 4
+    assert not list(out.glob("**/.*.partial")) and not list(out.glob("**/*.tmp")) and not (out / ".batch.lock").exists()
+    summary = read_batch_csv(out, "batch_summary")
+    assert summary.run_id.is_unique and len(summary) == 4
+
+
+def test_ray_runs_the_same_tasks_with_the_same_results(two_scenarios, tmp_path):
+    ray = pytest.importorskip("ray")
+    spec = load_scenario(two_scenarios / "light.toml")
+    tasks = [Task(spec.with_overrides(seed=s), "") for s in (0, 1)]
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        rows = run_batch(tasks, tmp_path / "ray", RayExecutor("local"), progress=False)
+    finally:
+        ray.shutdown()
+    run_batch(tasks, tmp_path / "local", LocalExecutor(workers=2), progress=False)
+    assert list(rows.status) == ["ok", "ok"]
+    for task in tasks:
+        for name in AUDIT_FILES:
+            assert (tmp_path / "ray" / task.run_id / name).read_bytes() == \
+                (tmp_path / "local" / task.run_id / name).read_bytes()
+
+
+def test_grid_variants_sweep_presets_and_demand(two_scenarios, tmp_path):
+    (two_scenarios / "grid.toml").write_text('[batch]\nscenarios = ["busy.toml"]\nseeds = [3]\n'
+                                             '[batch.grid]\nrss_preset = ["ad_rss", "krauss"]\n'
+                                             'demand_scale = [0.5, 1.0]\n')
+    tasks = load_batch(two_scenarios / "grid.toml").tasks()
+    assert [t.run_id for t in tasks] == [
+        "busy__rss_preset=ad_rss+demand_scale=0.5/3", "busy__rss_preset=ad_rss+demand_scale=1/3",
+        "busy__rss_preset=krauss+demand_scale=0.5/3", "busy__rss_preset=krauss+demand_scale=1/3"]
+    assert tasks[0].spec.demand.flows[0].veh_per_hour == 1500.0 and tasks[2].spec.rss.preset == "krauss"
+    rows = run_batch(tasks, tmp_path / "grid", LocalExecutor(workers=2), progress=False).set_index("variant")
+    assert rows.loc["rss_preset=ad_rss+demand_scale=0.5", "vehicles_inserted"] < \
+        rows.loc["rss_preset=ad_rss+demand_scale=1", "vehicles_inserted"]
+    # Krauss parameters describe what SUMO's drivers do: far fewer danger episodes than under ad_rss.
+    assert rows.loc["rss_preset=krauss+demand_scale=1", "episodes"] < rows.loc["rss_preset=ad_rss+demand_scale=1",
+                                                                               "episodes"]
+
+
+def test_report_plots_what_the_csvs_say(two_scenarios, tmp_path):
+    batch = load_batch(two_scenarios / "batch.toml")
+    out = tmp_path / "b"
+    run_batch(batch.tasks(), out, LocalExecutor(workers=2), progress=False)
+    html = write_report(out)
+    page = html.read_text()
+    for name in ("responsibility", "violations", "pair_timeline", "ego_speed"):
+        assert (out / "report" / f"{name}.png").stat().st_size > 5000
+        assert f"alt='{name}' src='data:image/png;base64," in page  # self-contained
+    # Bar lengths of the responsibility plot = counts recomputed here from the episodes CSV.
+    from sumo_rss.report.plots import responsibility_bars
+
+    episodes = pd.read_csv(out / "episodes.csv", keep_default_na=False)
+    fig, table = responsibility_bars(responsibility_table(episodes))
+    expected = pd.crosstab(episodes.scenario, responsibility_category(episodes))
+    widths = [round(p.get_width()) for p in fig.axes[0].patches]
+    n = len(table.index)
+    for k, category in enumerate(table.columns):
+        for r, label in enumerate(table.index):
+            assert widths[k * n + r] == expected.get(category, pd.Series(dtype=int)).get(label, 0)
+    assert sum(widths) == len(episodes)
+    # Every run's row is in the HTML summary.
+    for run_id in read_batch_csv(out, "batch_summary").run_id:
+        assert run_id in page
+
+
+def test_batch_spec_errors_name_the_file_and_key(tmp_path):
+    bad = tmp_path / "b.toml"
+    bad.write_text('[batch]\nscenarios = ["x.toml"]\nseeds = "9:3"\n')
+    with pytest.raises(Exception, match=r"b\.toml: batch\.seeds: expected a list of integers"):
+        load_batch(bad)
+    bad.write_text('[batch]\nscenarios = ["x.toml"]\n[batch.grid]\nrss_preset = ["strict"]\n')
+    with pytest.raises(Exception, match=r"b\.toml: batch\.grid\.rss_preset: expected values among"):
+        load_batch(bad)
+    assert isinstance(BatchSpec, type)
