@@ -169,3 +169,19 @@ def test_batch_spec_errors_name_the_file_and_key(tmp_path):
     with pytest.raises(Exception, match=r"b\.toml: batch\.grid\.rss_preset: expected values among"):
         load_batch(bad)
     assert isinstance(BatchSpec, type)
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path):
+    out = tmp_path / "out"
+    parent = subprocess.Popen([sys.executable, "-m", "sumo_rss", "batch", str(two_scenarios / "batch.toml"),
+                               "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
+        time.sleep(0.05)
+    parent.send_signal(signal.SIGINT)
+    _, err = parent.communicate(timeout=60)
+    assert parent.returncode == 130 and "interrupted" in err
+    assert not list(out.glob("**/.*.partial")) and not (out / ".batch.lock").exists()
+    summary = read_batch_csv(out, "batch_summary")
+    assert (summary.status == "ok").sum() >= 1 and set(summary.status) <= {"ok", "missing"}

@@ -43,8 +43,9 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
 
             try:
                 executor.run(todo, out_dir, on_result)
-            finally:
-                rows = write_batch_outputs(out_dir, tasks)  # also after Ctrl-C: what finished is summarised
+            finally:  # also after Ctrl-C: what finished is summarised, what was killed leaves nothing behind
+                _remove_partial_runs(out_dir)
+                rows = write_batch_outputs(out_dir, tasks)
     return rows
 
 
@@ -58,13 +59,18 @@ class _BatchLock:
             holder = int(self.path.read_text().strip() or 0)
             if holder and holder != os.getpid() and _alive(holder):
                 raise SumoRssError(f"{self.out_dir}: another batch (process {holder}) is running in this folder")
-        for stale in self.out_dir.glob("**/.*.partial"):  # left by a process that died mid-run
-            shutil.rmtree(stale, ignore_errors=True)
+        _remove_partial_runs(self.out_dir)  # left by a batch that died mid-run
         self.path.write_text(f"{os.getpid()}\n")
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.path.unlink(missing_ok=True)
+
+
+def _remove_partial_runs(out_dir: Path) -> None:
+    """Remove half-written run folders; only safe while holding the batch lock."""
+    for partial in out_dir.glob("**/.*.partial"):
+        shutil.rmtree(partial, ignore_errors=True)
 
 
 def _alive(pid: int) -> bool:
