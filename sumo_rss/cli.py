@@ -168,7 +168,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from .batch.executors import LocalExecutor, RayExecutor
     from .batch.orchestrator import run_batch
     from .batch.spec import BatchSpec, load_batch
-    from .scenario import load_scenario, tomllib
+    from .scenario import load_scenario
+    from .validation import tomllib
 
     tasks = []
     for path in args.specs:

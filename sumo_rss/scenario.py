@@ -7,7 +7,6 @@ the file, the dotted key path and the expected form.
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -16,12 +15,7 @@ from .errors import ScenarioError
 from .road.topology import NetTopology, read_topology
 from .sumo_home import vtype_attribute_names
 from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
-from .validation import TableReader, one_of
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
+from .validation import TableReader, one_of, read_toml
 
 CAR_FOLLOW_MODELS = ("Krauss", "KraussPS", "KraussOrig1", "IDM", "EIDM", "ACC", "CACC", "W99", "Wiedemann")
 # SL2015 needs SUMO's sublane model, which this project does not use (see docs/scenarios.md).
@@ -207,15 +201,7 @@ def _plain(value: Any) -> Any:
 def load_scenario(path: str | Path) -> ScenarioSpec:
     """Read and validate a scenario file."""
     path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(path, "", "scenario file not found", has_got=False)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(path, "", "not a UTF-8 text file", has_got=False) from exc
-    return parse_scenario(data, path)
+    return parse_scenario(read_toml(path, "scenario"), path)
 
 
 def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:

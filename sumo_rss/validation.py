@@ -7,13 +7,31 @@ misspelt key is an error, never a silent default.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from .errors import ScenarioError
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
 _MISSING = object()
+
+
+def read_toml(path: Path, what: str) -> dict[str, Any]:
+    """The tables of a TOML file; ScenarioError naming the file if it is missing or not TOML."""
+    if not path.is_file():
+        raise ScenarioError(path, "", f"{what} file not found", has_got=False)
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(path, "", "not a UTF-8 text file", has_got=False) from exc
 
 
 class TableReader:

@@ -21,8 +21,8 @@ from pathlib import Path
 
 from ..errors import ScenarioError
 from ..rss.params import PRESETS, resolve_params
-from ..scenario import CONTROLLERS, ScenarioSpec, load_scenario, tomllib
-from ..validation import TableReader
+from ..scenario import CONTROLLERS, ScenarioSpec, load_scenario
+from ..validation import TableReader, read_toml
 
 GRID_KEYS = ("rss_preset", "demand_scale", "controller")
 
@@ -114,13 +114,7 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
 def load_batch(path: str | Path) -> BatchSpec:
     """Read and validate a batch file; scenario paths are relative to it."""
     path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(path, "", "batch file not found", has_got=False)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
-    top = TableReader(data, path)
+    top = TableReader(read_toml(path, "batch"), path)
     batch = top.table("batch", required=True)
     files = batch.string_list("scenarios")
     seeds = parse_seeds(batch.raw("seeds", [0]), batch)
