@@ -39,7 +39,8 @@ def responsibility_table(episodes: pd.DataFrame) -> pd.DataFrame:
     """Episodes per run label (rows) and responsibility category (columns)."""
     if episodes.empty:
         return pd.DataFrame(columns=RESPONSIBILITY_CATEGORIES)
-    table = pd.crosstab(run_label(episodes), responsibility_category(episodes))
+    table = pd.crosstab(run_label(episodes), responsibility_category(episodes), rownames=["run"],
+                        colnames=["responsible"])
     return table.reindex(columns=RESPONSIBILITY_CATEGORIES, fill_value=0)
 
 
@@ -47,4 +48,4 @@ def violation_table(violations: pd.DataFrame) -> pd.DataFrame:
     """Violations per constraint (rows) and run label (columns)."""
     if violations.empty:
         return pd.DataFrame()
-    return pd.crosstab(violations.constraint, run_label(violations))
+    return pd.crosstab(violations.constraint, run_label(violations), rownames=["rule"], colnames=["run"])
