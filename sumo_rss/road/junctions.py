@@ -1,0 +1,164 @@
+"""Junction model: links through each junction, their conflict areas, right of way and signal indices.
+
+A *link* is one connection through a junction: incoming lane → internal lane(s) → outgoing lane. Two links
+that SUMO marks as foes and whose lane strips overlap share a *conflict area*, given as an s-interval along
+each link's internal path. Right of way comes from SUMO's junction logic (``<request response=...>``: link i
+yields to link j when bit j of its response is set); at signals the current link states override it
+(``G`` over ``g`` over ``y``/``r``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import sumolib
+
+from .frenet import LaneShapes
+from .network import RoadNetwork
+
+SAMPLE_SPACING_M = 0.2  # [m] resolution of conflict-area boundaries
+SIGNAL_RANK = {"G": 2, "g": 1}  # every other state ('y', 'r', 'u', 'o', 's', ...) ranks 0
+
+
+@dataclass(frozen=True)
+class Link:
+    """One connection through a junction. Lanes are RoadNetwork lane indices."""
+
+    junction: str
+    index: int  # SUMO's link index within the junction (bit position in <request>)
+    from_lane: int
+    to_lane: int
+    path: tuple[int, ...]  # internal lanes in driving order
+    length: float  # length of the internal path [m]
+    tls: str  # traffic light id, '' if unsignalised
+    tls_index: int  # index into the signal's state string, -1 if unsignalised
+    direction: str  # SUMO's dir: 's', 'l', 'r', 't', ...
+
+
+@dataclass(frozen=True)
+class ConflictArea:
+    """Where the strips of two foe links overlap, as an s-interval along each link's path [m]."""
+
+    id: str  # '<junction>:<link a>x<link b>'
+    link_a: int  # indices into JunctionModel.links
+    link_b: int
+    a_start: float
+    a_end: float
+    b_start: float
+    b_end: float
+    kind: str  # 'crossing' or 'merging' (both links lead into the same lane)
+    static_priority: str  # 'a', 'b' or 'same', from SUMO's junction logic
+
+
+@dataclass(frozen=True, eq=False)
+class JunctionModel:
+    links: tuple[Link, ...]
+    conflicts: tuple[ConflictArea, ...]
+    link_of_lane: dict[int, tuple[int, float]]  # internal lane → (link, offset of the lane along the link path [m])
+
+    @classmethod
+    def from_file(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
+        net = sumolib.net.readNet(str(path), withInternal=True)
+        lane_idx = {lane_id: k for k, lane_id in enumerate(network.lane_ids)}
+        links: list[Link] = []
+        prohibits: dict[str, list[str]] = {}
+        foes: dict[str, list[str]] = {}
+        for node in net.getNodes():
+            if node.getType() in ("internal", "dead_end") or not node._foes:
+                continue
+            prohibits[node.getID()] = [node._prohibits[i] for i in sorted(node._prohibits)]
+            foes[node.getID()] = [node._foes[i] for i in sorted(node._foes)]
+            for edge in node.getIncoming():
+                if edge.getFunction() == "internal":  # with internal lanes loaded, they are incoming too
+                    continue
+                for inc in edge.getLanes():
+                    for c in inc.getOutgoing():
+                        if not c.getViaLaneID():
+                            continue
+                        path = _internal_path(lane_idx[c.getViaLaneID()], network)
+                        links.append(Link(
+                            junction=node.getID(), index=c.getJunctionIndex(), from_lane=lane_idx[inc.getID()],
+                            to_lane=lane_idx[c.getToLane().getID()], path=path,
+                            length=float(network.lane_length[list(path)].sum()),
+                            tls=c.getTLSID() or "", tls_index=c.getTLLinkIndex() if c.getTLSID() else -1,
+                            direction=c.getDirection()))
+        links.sort(key=lambda link: (link.junction, link.index))
+        link_of_lane = {}
+        for k, link in enumerate(links):
+            offset = 0.0
+            for lane in link.path:
+                link_of_lane[lane] = (k, offset)
+                offset += float(network.lane_length[lane])
+        conflicts = _conflict_areas(links, network, foes, prohibits)
+        return cls(tuple(links), tuple(conflicts), link_of_lane)
+
+    def links_from(self, lane: int) -> list[int]:
+        """Links that start at incoming lane ``lane``."""
+        return [k for k, link in enumerate(self.links) if link.from_lane == lane]
+
+    def conflicts_of(self, link: int) -> list[ConflictArea]:
+        return [c for c in self.conflicts if link in (c.link_a, c.link_b)]
+
+
+def _internal_path(via: int, network: RoadNetwork) -> tuple[int, ...]:
+    """The internal lanes of a link: its via lane and the internal lanes chained after it (a left turn's
+    waiting position, for instance)."""
+    path = [via]
+    while True:
+        nxt = [lane for lane in network.lane_successors[path[-1]] if network.edge_internal[network.lane_edge[lane]]]
+        if not nxt or nxt[0] in path:
+            return tuple(path)
+        path.append(nxt[0])
+
+
+def _path_polyline(path: tuple[int, ...], network: RoadNetwork) -> np.ndarray:
+    pts = []
+    for lane in path:
+        shape = network.shapes.points[lane, : network.shapes.count[lane]]
+        pts.extend(shape if not pts else shape[1:])
+    return np.asarray(pts, dtype=float)
+
+
+def _overlap_interval(src: np.ndarray, src_width: float, dst: np.ndarray, dst_width: float) -> tuple[float, float] | None:
+    """s-interval along polyline ``src`` where its strip overlaps the strip of ``dst`` (None if nowhere)."""
+    shapes = LaneShapes.from_polylines([src, dst])
+    total = float(shapes.cumulative[0, -1])
+    s = np.arange(0.0, total + 1e-9, SAMPLE_SPACING_M)
+    xy = np.column_stack([np.interp(s, shapes.cumulative[0, : len(src)], src[:, 0]),
+                          np.interp(s, shapes.cumulative[0, : len(src)], src[:, 1])])
+    s_dst, d_dst, heading_dst = shapes.project(np.ones(len(s), dtype=int), xy[:, 0], xy[:, 1])
+    heading_src = shapes.heading_at(np.zeros(len(s), dtype=int), s)
+    cos = np.abs(np.cos(heading_src - heading_dst))
+    inside = (np.abs(d_dst) < dst_width / 2.0 + src_width / 2.0 * cos) & (s_dst >= 0.0) & \
+        (s_dst <= float(shapes.cumulative[1, -1]))
+    if not np.any(inside):
+        return None
+    return float(s[inside].min()), float(s[inside].max())
+
+
+def _conflict_areas(links: list[Link], network: RoadNetwork, foes: dict[str, list[str]],
+                    prohibits: dict[str, list[str]]) -> list[ConflictArea]:
+    polylines = [_path_polyline(link.path, network) for link in links]
+    widths = [float(network.lane_width[link.path[0]]) for link in links]
+    by_junction: dict[str, list[int]] = {}
+    for k, link in enumerate(links):
+        by_junction.setdefault(link.junction, []).append(k)
+    areas = []
+    for junction, members in by_junction.items():
+        n = len(foes[junction])
+        for ia, a in enumerate(members):
+            for b in members[ia + 1:]:
+                la, lb = links[a], links[b]
+                if foes[junction][la.index][n - 1 - lb.index] != "1":
+                    continue
+                on_a = _overlap_interval(polylines[a], widths[a], polylines[b], widths[b])
+                on_b = _overlap_interval(polylines[b], widths[b], polylines[a], widths[a])
+                if on_a is None or on_b is None:
+                    continue
+                a_yields = prohibits[junction][la.index][n - 1 - lb.index] == "1"
+                b_yields = prohibits[junction][lb.index][n - 1 - la.index] == "1"
+                priority = "b" if a_yields and not b_yields else "a" if b_yields and not a_yields else "same"
+                kind = "merging" if la.to_lane == lb.to_lane else "crossing"
+                areas.append(ConflictArea(f"{junction}:{la.index}x{lb.index}", a, b, *on_a, *on_b, kind, priority))
+    return areas
