@@ -1,0 +1,107 @@
+"""RSS safety of two cars whose paths meet in a conflict area (rss.md §4; paper Def. 16-18; ad_rss's checker).
+
+Each car is described by its speed, d_enter (front bumper to the start of the area, negative once inside) and
+d_exit (rear bumper to the end of the area: how far until it has fully left) along its own path. The pair is
+safe if any of three conditions holds:
+
+1. *able to stop*: every car without priority (both, with equal priority) can stop before the area, braking at
+   b_min after accelerating during ρ: D(v) + λ < d_enter;
+2. *in front*: on a virtual line through the area, one car is wholly ahead of the other (its rear bumper before
+   the other's front bumper) by more than the same-direction safe distance;
+3. *no time overlap*: one car's earliest arrival (accelerating during ρ, then braking at b_min) comes after the
+   other's latest exit (braking at b_max from now), or neither can arrive at all.
+
+Formulas follow ad_rss 5.0.0 number for number, with two deliberate differences (docs/rss.md): with equal
+priority condition 1 needs *both* cars able to stop (ad_rss accepts either), and each car's own speed cap is
+used in condition 3 (ad_rss applies the ego's cap to both). All functions broadcast over numpy arrays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir
+
+TIME_PRECISION = 1e-3  # [s] arrival must follow exit by more than this (ad_rss's Duration tolerance)
+PRIORITY_SAME, PRIORITY_A, PRIORITY_B = 0, 1, 2
+
+
+def time_to_cover(v: Any, distance: Any, response_time: Any, accel_response: Any, accel_after: Any,
+                  speed_cap: Any) -> np.ndarray:
+    """Time [s] to cover ``distance`` [m] from speed ``v`` [m/s]: ``accel_response`` during ρ (speed floored at
+    0, capped at max(v_cap, v) when accelerating), then ``accel_after`` (< 0: braking). inf if the car stops
+    first; 0 for distance <= 0. Accelerations are signed [m/s²]."""
+    v, d = np.broadcast_arrays(np.asarray(v, dtype=float), np.asarray(distance, dtype=float))
+    rho, a1, a2, cap = (np.broadcast_to(np.asarray(x, dtype=float), v.shape)
+                        for x in (response_time, accel_response, accel_after, speed_cap))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # Phase 1 (ρ). Accelerating: up to the cap at t_c, then cruising. Braking: possibly to a standstill.
+        top = np.where(a1 > 0, np.minimum(np.maximum(cap, v), v + a1 * rho), v)
+        t_c = np.where(a1 > 0, (top - v) / np.where(a1 > 0, a1, 1.0), 0.0)
+        d_c = v * t_c + 0.5 * a1 * t_c * t_c
+        stop_1 = np.where(a1 < 0, v / np.where(a1 < 0, -a1, 1.0), np.inf)
+        braking_stops = stop_1 < rho
+        v_rho = np.where(a1 > 0, top, np.where(braking_stops, 0.0, v + np.minimum(a1, 0.0) * rho))
+        d_rho = np.where(a1 > 0, d_c + top * (rho - t_c),
+                         np.where(braking_stops, v * v / (2.0 * np.where(a1 < 0, -a1, 1.0)),
+                                  v * rho + 0.5 * np.minimum(a1, 0.0) * rho * rho))
+        # Time within phase 1.
+        t_acc = np.where(d <= d_c, np.where(np.abs(a1) > 0, (-v + np.sqrt(v * v + 2.0 * a1 * d)) / a1, d / v),
+                         t_c + (d - d_c) / top)
+        t_brake1 = (v - np.sqrt(np.maximum(v * v + 2.0 * a1 * d, 0.0))) / np.where(a1 < 0, -a1, 1.0)
+        t_first = np.where(a1 > 0, t_acc, np.where(a1 < 0, t_brake1, d / v))
+        # Phase 2: braking at accel_after from v_rho.
+        rest = d - d_rho
+        disc = v_rho * v_rho + 2.0 * a2 * rest
+        t_second = rho + (v_rho - np.sqrt(np.maximum(disc, 0.0))) / np.where(a2 < 0, -a2, 1.0)
+        reachable_2 = (v_rho > 0) & (disc >= 0) & (a2 < 0)
+        t = np.where(d <= d_rho, t_first, np.where(reachable_2, t_second, np.inf))
+    return np.where(d <= 0.0, 0.0, np.where(np.isfinite(t) & (t >= 0), t, np.inf))
+
+
+@dataclass(frozen=True, eq=False)
+class IntersectionSafety:
+    """Which of the three conditions hold, per pair (arrays of bool)."""
+
+    able_to_stop: np.ndarray
+    in_front: np.ndarray
+    no_time_overlap: np.ndarray
+    a_in_front: np.ndarray  # a's rear bumper is ahead of b's front bumper on the virtual line
+    b_in_front: np.ndarray
+
+    @property
+    def safe(self) -> np.ndarray:
+        return self.able_to_stop | self.in_front | self.no_time_overlap
+
+
+def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a: Any,
+                        v_b: Any, enter_b: Any, exit_b: Any, length_b: Any, p_b: Any,
+                        priority: Any) -> IntersectionSafety:
+    """Evaluate the three conditions. Speeds ≥ 0 [m/s]; distances and lengths [m]; ``priority`` PRIORITY_*."""
+    enter_a, enter_b = np.asarray(enter_a, dtype=float), np.asarray(enter_b, dtype=float)
+    priority = np.asarray(priority)
+    # 1. Able to stop before the area (a car inside can not).
+    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap)
+    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap)
+    able = np.where(priority == PRIORITY_A, stop_b, np.where(priority == PRIORITY_B, stop_a, stop_a & stop_b))
+    # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
+    a_front = enter_b > enter_a + np.asarray(length_a)
+    b_front = enter_a > enter_b + np.asarray(length_b)
+    gap = np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b)
+    d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a, p_b, p_a),
+                     lon_safe_distance_same_dir(v_a, v_b, p_a, p_b))
+    in_front = (a_front | b_front) & is_safe_distance(gap, d_min)
+    # 3. No time overlap: earliest arrival of one after the latest exit of the other.
+    arrive_a = time_to_cover(v_a, np.maximum(enter_a, 0.0), p_a.response_time, p_a.lon_accel_max,
+                             -np.asarray(p_a.lon_brake_min), p_a.max_speed_on_accel)
+    arrive_b = time_to_cover(v_b, np.maximum(enter_b, 0.0), p_b.response_time, p_b.lon_accel_max,
+                             -np.asarray(p_b.lon_brake_min), p_b.max_speed_on_accel)
+    leave_a = time_to_cover(v_a, exit_a, p_a.response_time, -np.asarray(p_a.lon_brake_max),
+                            -np.asarray(p_a.lon_brake_max), p_a.max_speed_on_accel)
+    leave_b = time_to_cover(v_b, exit_b, p_b.response_time, -np.asarray(p_b.lon_brake_max),
+                            -np.asarray(p_b.lon_brake_max), p_b.max_speed_on_accel)
+    no_overlap = (arrive_a > leave_b + TIME_PRECISION) | (arrive_b > leave_a + TIME_PRECISION) | \
+        (np.isinf(arrive_a) & np.isinf(arrive_b))
+    return IntersectionSafety(able, in_front, no_overlap, a_front, b_front)
