@@ -20,7 +20,8 @@ from .responsibility import ResponsibilityTracker, StepInput
 from .situations import PairSituations, evaluate, vehicle_frame
 
 EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "episode_index",
-                   "situation", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b", "responsible",
+                   "situation", "conflict_area", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b",
+                   "responsible",
                    "min_lon_margin_m", "min_lat_margin_m", "collision", "collider", "victim", "ended_by"]
 VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
                      "worst_actual", "excess", "t_start_s", "t_end_s"]

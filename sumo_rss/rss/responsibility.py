@@ -13,7 +13,8 @@ from enum import Enum
 import numpy as np
 
 from .params import RssParamArrays
-from .situations import SITUATION_CODES, PairSituations
+from .duties import duties_at_threshold
+from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES, PairSituations
 
 EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
 STOPPED_SPEED = 0.05  # [m/s] below this a car counts as stopped
@@ -59,10 +60,14 @@ class _Episodes:
     kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     t_b: np.ndarray = field(default_factory=lambda: np.zeros(0))
     t_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    owed_lon: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    must_brake: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
+    front_limited: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
+    brake_correct: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     owed_lat: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     trigger: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    a_rear: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    roles: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
+    owed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
+    area: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     u0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # lateral speed towards the other at t_b
     min_lon_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -96,8 +101,7 @@ class ResponsibilityTracker:
         self.violation_records: list[dict] = []
         self._open = _Episodes()
         self._prev_keys = np.zeros(0, dtype=np.int64)
-        self._prev_lon_safe = np.zeros(0, dtype=bool)
-        self._prev_lat_safe = np.zeros(0, dtype=bool)
+        self._prev_rules = np.zeros(0, dtype=np.int8)
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._last_time: float | None = None
@@ -129,8 +133,7 @@ class ResponsibilityTracker:
             rows = sit_rows[np.searchsorted(keys, self._open.keys)]
             self._check_compliance(step, rows)
         self._prev_keys = keys
-        self._prev_lon_safe = sit.lon_safe[order]
-        self._prev_lat_safe = sit.lat_safe[order]
+        self._prev_rules = sit.safe_rules[order]
         self._last_time = step.time
 
     def open_episodes(self, vclass: str) -> tuple[np.ndarray, list[str]]:
@@ -157,22 +160,19 @@ class ResponsibilityTracker:
 
     # -----------------------------------------------------------------------------------------------------
     def _episode_key(self, i: int) -> str:
+        """'a|b|k' for road episodes, 'a|b|xk' for intersection episodes of the pair."""
         e = self._open
-        return f"{e.a_id[i]}|{e.b_id[i]}|{self._episode_count[int(e.keys[i])]}"
+        tag = "x" if e.kind[i] >= FIRST_INTERSECTION_CODE else ""
+        return f"{e.a_id[i]}|{e.b_id[i]}|{tag}{self._episode_count[int(e.keys[i])]}"
 
     def _open_new(self, step: StepInput, keys: np.ndarray, rows: np.ndarray) -> None:
         sit = step.situations
         a, b = sit.a[rows], sit.b[rows]
-        # What was safe just before t_b decides the owed response (rss.md §5). A pair that was no candidate at
-        # the previous step was far apart: longitudinally safe.
+        # What was safe just before t_b decides the owed response (rss.md §5).
         seen, pos = _lookup(self._prev_keys, keys)
-        prev_lon = np.where(seen, self._prev_lon_safe[pos], True) if len(self._prev_keys) else np.ones(len(keys), bool)
-        prev_lat = np.where(seen, self._prev_lat_safe[pos], False) if len(self._prev_keys) else np.zeros(len(keys), bool)
+        prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
-        overlap_lon = sit.lon_gap[rows] < 0.0
-        owed_lon = np.where(appeared, ~overlap_lon, prev_lon)
-        owed_lat = np.where(appeared, overlap_lon, prev_lat)
-        trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
+        duties = duties_at_threshold(sit, rows, prev_rules, seen, appeared)
         # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
         u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
                               np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
@@ -183,8 +183,10 @@ class ResponsibilityTracker:
             keys=keys.astype(np.int64), a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
             a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
             kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
-            owed_lon=owed_lon, owed_lat=owed_lat, trigger=trigger.astype(object),
-            a_rear=sit.a_is_rear[rows], a_left=sit.a_is_left[rows], u0=u0,
+            must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
+            owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
+            area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
+            a_left=sit.a_is_left[rows], u0=u0,
             min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
             min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
             responsible=np.zeros((n, 2), dtype=bool), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
@@ -209,11 +211,9 @@ class ResponsibilityTracker:
         rho = p.response_time[cars]
         tau = (t - e.t_b)[:, None]
         in_response = tau <= rho + TIME_EPS
-        same = (e.kind == 0)[:, None]
-        rear = np.column_stack([e.a_rear, ~e.a_rear])
-        braker = np.where(same, rear, True) & e.owed_lon[:, None]  # who owes braking
-        front = same & ~rear & e.owed_lon[:, None]
-        brake_needed = np.where(same, p.lon_brake_min[cars], p.lon_brake_min_correct[cars])
+        braker = e.must_brake
+        front = e.front_limited
+        brake_needed = np.where(e.brake_correct[:, None], p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
         moving = v_lon >= STOPPED_SPEED
 
         actual = np.zeros(cars.shape + (N_CONSTRAINTS,))
@@ -261,7 +261,7 @@ class ResponsibilityTracker:
             vclass = e.a_class[i] if car == 0 else e.b_class[i]
             self.violation_records.append({
                 "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_id": vid,
-                "vehicle_class": vclass, "role": _role(e, i, car), "constraint": CONSTRAINTS[c].value,
+                "vehicle_class": vclass, "role": e.roles[i, car], "constraint": CONSTRAINTS[c].value,
                 "bound": float(e.v_bound[i, car, c]), "worst_actual": float(e.v_worst[i, car, c]),
                 "excess": float(e.v_excess[i, car, c]), "t_start_s": float(e.v_start[i, car, c]),
                 "t_end_s": float(e.v_last[i, car, c])})
@@ -283,7 +283,7 @@ class ResponsibilityTracker:
                 "episode_index": self._episode_count[int(e.keys[i])],
                 "situation": SITUATION_CODES[e.kind[i]].value, "t_b_s": float(e.t_b[i]), "t_end_s": t_end,
                 "duration_s": t_end - float(e.t_b[i]), "trigger": e.trigger[i],
-                "owed_a": _owed(e, i, 0), "owed_b": _owed(e, i, 1),
+                "conflict_area": e.area[i], "owed_a": e.owed[i, 0], "owed_b": e.owed[i, 1],
                 "responsible": "both" if resp.all() else "a" if resp[0] else "b" if resp[1] else "none",
                 "min_lon_margin_m": float(e.min_lon_margin[i]), "min_lat_margin_m": float(e.min_lat_margin[i]),
                 "collision": collision is not None, "collider": collision[0] if collision else "",
@@ -300,28 +300,3 @@ def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.
         return np.zeros(len(query), dtype=bool), np.zeros(len(query), dtype=int)
     pos = np.clip(np.searchsorted(sorted_keys, query), 0, len(sorted_keys) - 1)
     return sorted_keys[pos] == query, pos
-
-
-def _duties(e: _Episodes, i: int, car: int) -> list[tuple[str, str]]:
-    """(role, owed response) of one car of episode ``i`` for each owed response, e.g. ('rear', 'lon:brake-min')."""
-    is_a = car == 0
-    duties = []
-    if e.owed_lon[i]:
-        if e.kind[i] != 0:
-            duties.append(("oncoming", "lon:brake-correct"))
-        elif e.a_rear[i] == is_a:
-            duties.append(("rear", "lon:brake-min"))
-        else:
-            duties.append(("front", "lon:brake-at-most-max"))
-    if e.owed_lat[i]:
-        duties.append(("left" if e.a_left[i] == is_a else "right", "lat:brake"))
-    return duties
-
-
-def _role(e: _Episodes, i: int, car: int) -> str:
-    return "+".join(role for role, _ in _duties(e, i, car))
-
-
-def _owed(e: _Episodes, i: int, car: int) -> str:
-    """The proper response owed by one car, e.g. 'lon:brake-min+lat:brake'."""
-    return "+".join(owed for _, owed in _duties(e, i, car))

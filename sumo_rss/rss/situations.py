@@ -29,9 +29,16 @@ class SituationType(str, Enum):
 
     SAME_DIRECTION = "same-direction"
     OPPOSITE_DIRECTION = "opposite-direction"
+    INTERSECTION_PRIORITY = "intersection-priority"  # paths cross in a junction; the signals give one priority
+    INTERSECTION_YIELD = "intersection-yield"  # ... the junction's right of way gives one priority
+    INTERSECTION_SAME_PRIORITY = "intersection-same-priority"  # ... neither has priority
 
 
-SITUATION_CODES = (SituationType.SAME_DIRECTION, SituationType.OPPOSITE_DIRECTION)  # index = code in arrays
+SITUATION_CODES = tuple(SituationType)  # index = code in arrays
+FIRST_INTERSECTION_CODE = 2
+# Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
+RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
+RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,13 +91,41 @@ class PairSituations:
     lat_d_min: np.ndarray  # [m]
     lon_safe: np.ndarray
     lat_safe: np.ndarray
+    # Intersections: RULE_* bits that hold, priority (0 same, 1 a, 2 b) and the conflict area; lon_gap /
+    # lon_d_min then hold the yielding car's distance to the area and what it needs to stop before it.
+    rules: np.ndarray | None = None
+    priority: np.ndarray | None = None
+    area: np.ndarray | None = None
+
+    @property
+    def safe_rules(self) -> np.ndarray:
+        """RULE_* bits of the safety conditions that hold."""
+        if self.rules is not None:
+            return self.rules
+        return self.lon_safe.astype(np.int8) * RULE_LON + self.lat_safe.astype(np.int8) * RULE_LAT
 
     @property
     def dangerous(self) -> np.ndarray:
-        return ~self.lon_safe & ~self.lat_safe
+        return self.safe_rules == 0
 
     def __len__(self) -> int:
         return int(self.a.shape[0])
+
+    @staticmethod
+    def concat(parts: list[PairSituations]) -> PairSituations:
+        """One set of situations from several (road and intersection); optional fields filled per part."""
+        n = [len(p) for p in parts]
+
+        def column(name: str, default: object, dtype: object) -> np.ndarray:
+            return np.concatenate([getattr(p, name) if getattr(p, name) is not None else
+                                   np.full(k, default, dtype=dtype) for p, k in zip(parts, n)])
+
+        fields = {name: np.concatenate([getattr(p, name) for p in parts]) for name in (
+            "a", "b", "kind", "a_is_rear", "a_is_left", "lon_gap", "lat_gap", "v_lon_a", "v_lon_b", "v_lat_a",
+            "v_lat_b", "lon_d_min", "lat_d_min", "lon_safe", "lat_safe")}
+        rules = np.concatenate([p.safe_rules for p in parts])
+        return PairSituations(**fields, rules=rules, priority=column("priority", 0, np.int8),
+                              area=column("area", "", object))
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:

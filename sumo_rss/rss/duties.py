@@ -1,0 +1,96 @@
+"""The proper response each car owes from the danger threshold on (rss.md §5), decided from what was still
+safe at the step before t_b.
+
+Roads: lateral safe before → a lateral response by both; longitudinal safe before → a longitudinal one (the rear
+car brakes at b_min, the front car must not brake harder than b_max; opposite directions: both brake at b_corr);
+both safe → both responses; a pair that appears already dangerous owes the longitudinal response unless the
+cars overlap longitudinally, then the lateral one.
+Intersections: able-to-stop held → the car(s) without priority brake, a priority car may drive on; in-front
+held → the rear car brakes; otherwise (no time overlap, or dangerous when first seen) both brake.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .situations import (FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_LAT, RULE_LON,
+                         PairSituations)
+
+
+@dataclass(frozen=True, eq=False)
+class Duties:
+    """Per new episode (rows) and car (columns a, b)."""
+
+    must_brake: np.ndarray  # [n, 2] at most a_acc during ρ, then at least b_min (b_corr) until stopped
+    front_limited: np.ndarray  # [n, 2] must not brake harder than b_max
+    brake_correct: np.ndarray  # [n] opposite directions: the braking owed is b_corr
+    owed_lat: np.ndarray  # [n] the lateral response (both cars)
+    trigger: np.ndarray  # [n] what was lost at t_b
+    roles: np.ndarray  # [n, 2] e.g. 'rear', 'front+left', 'yielding'
+    owed: np.ndarray  # [n, 2] e.g. 'lon:brake-min+lat:brake'; '' when nothing is owed
+
+
+def _join(*parts: np.ndarray) -> np.ndarray:
+    """Element-wise '+'-join of string arrays, skipping empty parts."""
+    out = np.full(parts[0].shape, "", dtype=object)
+    for part in parts:
+        out = np.where(part == "", out, np.where(out == "", part, out + "+" + part))
+    return out
+
+
+def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
+                        appeared: np.ndarray) -> Duties:
+    """Duties of the pairs ``rows`` of ``sit`` that became dangerous now; ``prev_rules``: RULE_* bits at the
+    step before (valid where ``seen``); ``appeared``: a car of the pair entered the data this step."""
+    kind = sit.kind[rows]
+    crossing = kind >= FIRST_INTERSECTION_CODE
+    road = _road_duties(sit, rows, prev_rules, seen, appeared)
+    junction = _intersection_duties(sit, rows, prev_rules, seen, appeared)
+    pick = crossing[:, None]
+    return Duties(*(np.where(pick if getattr(road, f).ndim == 2 else crossing, getattr(junction, f), getattr(road, f))
+                    for f in ("must_brake", "front_limited", "brake_correct", "owed_lat", "trigger", "roles",
+                              "owed")))
+
+
+def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
+                 appeared: np.ndarray) -> Duties:
+    # A pair that was no candidate at the previous step was far apart: longitudinally safe.
+    prev_lon = np.where(seen, (prev_rules & RULE_LON) > 0, True)
+    prev_lat = np.where(seen, (prev_rules & RULE_LAT) > 0, False)
+    overlap = sit.lon_gap[rows] < 0.0
+    owed_lon = np.where(appeared, ~overlap, prev_lon)
+    owed_lat = np.where(appeared, overlap, prev_lat)
+    same = sit.kind[rows] == 0
+    a_rear = sit.a_is_rear[rows]
+    rear = np.column_stack([a_rear, ~a_rear])
+    must_brake = owed_lon[:, None] & np.where(same[:, None], rear, True)
+    front_limited = owed_lon[:, None] & same[:, None] & ~rear
+    lon_role = np.where(same[:, None], np.where(rear, "rear", "front"), "oncoming")
+    lon_owed = np.where(same[:, None], np.where(rear, "lon:brake-min", "lon:brake-at-most-max"), "lon:brake-correct")
+    a_left = sit.a_is_left[rows]
+    lat_role = np.column_stack([np.where(a_left, "left", "right"), np.where(a_left, "right", "left")])
+    roles = _join(np.where(owed_lon[:, None], lon_role, ""), np.where(owed_lat[:, None], lat_role, ""))
+    owed = _join(np.where(owed_lon[:, None], lon_owed, ""), np.where(owed_lat[:, None], "lat:brake", ""))
+    trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
+    return Duties(must_brake, front_limited, ~same, owed_lat, trigger.astype(object), roles, owed)
+
+
+def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
+                         appeared: np.ndarray) -> Duties:
+    n = len(rows)
+    rules = np.where(seen, prev_rules, 0)
+    able = (rules & RULE_ABLE_TO_STOP) > 0
+    in_front = ~able & ((rules & RULE_IN_FRONT) > 0)
+    priority = sit.priority[rows] if sit.priority is not None else np.zeros(n, dtype=np.int8)
+    yielding = np.column_stack([priority != 1, priority != 2])  # equal priority: both yield
+    a_rear = sit.a_is_rear[rows]
+    rear = np.column_stack([a_rear, ~a_rear])
+    must_brake = np.where(able[:, None], yielding, np.where(in_front[:, None], rear, True))
+    roles = np.where(able[:, None], np.where(yielding, "yielding", "priority"),
+                     np.where(in_front[:, None], np.where(rear, "rear", "front"), "crossing")).astype(object)
+    owed = np.where(must_brake, "int:brake-min", "").astype(object)
+    trigger = np.where(able, "able-to-stop", np.where(in_front, "in-front", np.where(
+        (rules > 0), "no-time-overlap", np.where(appeared, "appeared", "first-seen"))))
+    return Duties(must_brake, np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool),
+                  trigger.astype(object), roles, owed)
