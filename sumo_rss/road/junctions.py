@@ -53,9 +53,21 @@ class ConflictArea:
 
 @dataclass(frozen=True, eq=False)
 class JunctionModel:
+    """Links and conflict areas, plus lookup arrays for vectorised per-step use (L links, n lanes)."""
+
     links: tuple[Link, ...]
     conflicts: tuple[ConflictArea, ...]
     link_of_lane: dict[int, tuple[int, float]]  # internal lane → (link, offset of the lane along the link path [m])
+    lane_links: np.ndarray  # [n, k] links starting at each incoming lane, -1 padded
+    lane_link: np.ndarray  # [n] link of an internal lane, -1 otherwise
+    lane_link_offset: np.ndarray  # [n] offset of an internal lane along its link's path [m]
+    link_to_edge: np.ndarray  # [L] edge the link leads into
+    link_tls: np.ndarray  # [L] signal id ('' if none)
+    link_tls_index: np.ndarray  # [L] index into the signal state (-1 if none)
+    area_index: np.ndarray  # [L, L] conflict area of a link pair, -1 if none
+    area_start: np.ndarray  # [L, L] start of that area along the first link's path [m]
+    area_end: np.ndarray  # [L, L] its end [m]
+    static_priority: np.ndarray  # [L, L] +1: the first link has priority, -1: it yields, 0: same
 
     @classmethod
     def from_file(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
@@ -91,7 +103,42 @@ class JunctionModel:
                 link_of_lane[lane] = (k, offset)
                 offset += float(network.lane_length[lane])
         conflicts = _conflict_areas(links, network, foes, prohibits)
-        return cls(tuple(links), tuple(conflicts), link_of_lane)
+        n_lanes, n_links = len(network.lane_ids), len(links)
+        starting: dict[int, list[int]] = {}
+        for k, link in enumerate(links):
+            starting.setdefault(link.from_lane, []).append(k)
+        lane_links = np.full((n_lanes, max((len(v) for v in starting.values()), default=1)), -1, dtype=int)
+        for lane, ks in starting.items():
+            lane_links[lane, : len(ks)] = ks
+        lane_link = np.full(n_lanes, -1, dtype=int)
+        lane_link_offset = np.zeros(n_lanes)
+        for lane, (k, offset) in link_of_lane.items():
+            lane_link[lane], lane_link_offset[lane] = k, offset
+        area_index = np.full((n_links, n_links), -1, dtype=int)
+        area_start = np.zeros((n_links, n_links))
+        area_end = np.zeros((n_links, n_links))
+        static_priority = np.zeros((n_links, n_links), dtype=np.int8)
+        for m, c in enumerate(conflicts):
+            a, b = c.link_a, c.link_b
+            area_index[a, b] = area_index[b, a] = m
+            area_start[a, b], area_end[a, b], area_start[b, a], area_end[b, a] = c.a_start, c.a_end, c.b_start, c.b_end
+            sign = {"a": 1, "b": -1, "same": 0}[c.static_priority]
+            static_priority[a, b], static_priority[b, a] = sign, -sign
+        return cls(tuple(links), tuple(conflicts), link_of_lane, lane_links, lane_link, lane_link_offset,
+                   np.array([network.lane_edge[link.to_lane] for link in links], dtype=int),
+                   np.array([link.tls for link in links], dtype=object),
+                   np.array([link.tls_index for link in links], dtype=int),
+                   area_index, area_start, area_end, static_priority)
+
+    def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
+        """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
+        ranks = np.full(len(self.links), -1, dtype=int)
+        if tls_states:
+            for k, link in enumerate(self.links):
+                state = tls_states.get(link.tls)
+                if state is not None and 0 <= link.tls_index < len(state):
+                    ranks[k] = SIGNAL_RANK.get(state[link.tls_index], 0)
+        return ranks
 
     def links_from(self, lane: int) -> list[int]:
         """Links that start at incoming lane ``lane``."""

@@ -13,11 +13,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
 from .responsibility import ResponsibilityTracker, StepInput
+from .intersection import intersection_situations
 from .situations import PairSituations, evaluate, vehicle_frame
+
+INTERSECTION_KEY = np.int64(1) << np.int64(62)  # marks a pair's intersection situation (its own episodes)
 
 EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "episode_index",
                    "situation", "conflict_area", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b",
@@ -103,6 +107,7 @@ class Auditor:
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``."""
         self.network = network
+        self.junctions = JunctionModel.from_file(network.path, network)
         self.trace_class = trace_class
         self._traces: list[pd.DataFrame] = []
         self.params = params or ParamResolver()
@@ -120,9 +125,21 @@ class Auditor:
         """Audit one step; returns the evaluated pairs (for inspection)."""
         params = self.params.arrays(snapshot)
         frame = vehicle_frame(snapshot, self.network, params, self._remaining_routes(snapshot))
-        situations = evaluate(snapshot, frame, self.network)
+        road = evaluate(snapshot, frame, self.network)
         uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
-        keys = (uid[situations.a] << 32) | uid[situations.b]
+        road_keys = (uid[road.a] << 32) | uid[road.b]
+        crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
+                                           horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0)
+        if len(crossing):
+            crossing_keys = ((uid[crossing.a] << 32) | uid[crossing.b]) | INTERSECTION_KEY
+            # Several conflict areas per pair: the pair is dangerous if any is; keep the most critical one
+            # (dangerous first, then the yielding car closest to needing to stop).
+            order = np.lexsort((crossing.lon_gap - crossing.lon_d_min, ~crossing.dangerous, crossing_keys))
+            first = order[np.r_[True, crossing_keys[order][1:] != crossing_keys[order][:-1]]]
+            situations = PairSituations.concat([road, crossing.take(first)])
+            keys = np.concatenate([road_keys, crossing_keys[first]])
+        else:
+            situations, keys = road, road_keys
         new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, vclass=snapshot.vclass,

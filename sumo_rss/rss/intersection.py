@@ -22,9 +22,17 @@ from typing import Any
 
 import numpy as np
 
+from ..road.junctions import JunctionModel
+from ..road.network import RoadNetwork
+from ..sim.snapshot import WorldSnapshot
 from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir
+from .situations import (RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, SITUATION_CODES, PairSituations,
+                         SituationType, VehicleFrame)
 
 TIME_PRECISION = 1e-3  # [s] arrival must follow exit by more than this (ad_rss's Duration tolerance)
+KIND_SIGNAL = SITUATION_CODES.index(SituationType.INTERSECTION_PRIORITY)
+KIND_YIELD = SITUATION_CODES.index(SituationType.INTERSECTION_YIELD)
+KIND_SAME = SITUATION_CODES.index(SituationType.INTERSECTION_SAME_PRIORITY)
 PRIORITY_SAME, PRIORITY_A, PRIORITY_B = 0, 1, 2
 
 
@@ -105,3 +113,76 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     no_overlap = (arrive_a > leave_b + TIME_PRECISION) | (arrive_b > leave_a + TIME_PRECISION) | \
         (np.isinf(arrive_a) & np.isinf(arrive_b))
     return IntersectionSafety(able, in_front, no_overlap, a_front, b_front)
+
+
+def _next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """The route edge after each vehicle's current edge, -1 where unknown (no route, or not on it)."""
+    if route_edges.shape[1] < 2:
+        return np.full(len(edge), -1, dtype=int)
+    match = route_edges[:, :-1] == edge[:, None]
+    has = match.any(axis=1)
+    idx = match.argmax(axis=1)
+    return np.where(has, route_edges[np.arange(len(edge)), idx + 1], -1)
+
+
+def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
+                            junctions: JunctionModel, horizon: float) -> PairSituations:
+    """Every pair of vehicles whose links through a junction share a conflict area, one situation per pair and
+    area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
+    on an approach lane with the link to their route's next edge (every link from their lane when the route is
+    unknown), or already on the link's internal lanes."""
+    lane = frame.lane
+    # Entries (vehicle row, link, front bumper position along the link's path [m], negative before it).
+    inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
+    to_end = network.lane_length[lane] - snapshot.lane_pos
+    next_edge = _next_route_edge(frame.route_edges, frame.edge)
+    cand = junctions.lane_links[lane]
+    ok = (cand >= 0) & (to_end[:, None] <= horizon) & \
+        ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
+    r, c = np.nonzero(ok)
+    rows = np.concatenate([inside, r])
+    links = np.concatenate([junctions.lane_link[lane[inside]], cand[r, c]])
+    pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + snapshot.lane_pos[inside], -to_end[r]])
+    i, j = np.triu_indices(len(rows), 1)
+    i, j = i[junctions.area_index[links[i], links[j]] >= 0], j[junctions.area_index[links[i], links[j]] >= 0]
+    i, j = i[rows[i] != rows[j]], j[rows[i] != rows[j]]
+    # Name each situation by id order: a < b.
+    swap = snapshot.ids[rows[i]] > snapshot.ids[rows[j]]
+    ea, eb = np.where(swap, j, i), np.where(swap, i, j)
+    ra, rb, la, lb = rows[ea], rows[eb], links[ea], links[eb]
+    length = snapshot.length
+    enter_a = junctions.area_start[la, lb] - pos[ea]
+    enter_b = junctions.area_start[lb, la] - pos[eb]
+    exit_a = junctions.area_end[la, lb] - pos[ea] + length[ra]
+    exit_b = junctions.area_end[lb, la] - pos[eb] + length[rb]
+    keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
+    ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b = (
+        x[keep] for x in (ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b))
+    # Priority: the signals decide where both links are signalised and their ranks differ, else the junction.
+    ranks = junctions.signal_ranks(snapshot.tls_states)
+    rank_a, rank_b = ranks[la], ranks[lb]
+    by_signal = (rank_a >= 0) & (rank_b >= 0) & (rank_a != rank_b)
+    static = junctions.static_priority[la, lb]
+    priority = np.where(by_signal, np.where(rank_a > rank_b, PRIORITY_A, PRIORITY_B),
+                        np.where(static > 0, PRIORITY_A, np.where(static < 0, PRIORITY_B, PRIORITY_SAME)))
+    kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
+    v_a, v_b = np.maximum(frame.v_lon[ra], 0.0), np.maximum(frame.v_lon[rb], 0.0)
+    p = frame.params
+    p_a, p_b = p.take(ra), p.take(rb)
+    safety = intersection_safety(v_a, enter_a, exit_a, length[ra], p_a, v_b, enter_b, exit_b, length[rb], p_b,
+                                 priority)
+    rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
+             safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
+    # Margin of the yielding car (with equal priority, of the one deeper in trouble): distance to the area minus
+    # what it needs to stop before it.
+    need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
+    need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
+    a_yields = (priority == PRIORITY_B) | ((priority == PRIORITY_SAME) & (enter_a - need_a <= enter_b - need_b))
+    n = len(ra)
+    nan = np.full(n, np.nan)
+    return PairSituations(
+        a=ra, b=rb, kind=kind, a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
+        lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
+        v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, need_a, need_b), lat_d_min=nan,
+        lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
+        area=np.array([junctions.conflicts[k].id for k in junctions.area_index[la, lb]], dtype=object))

@@ -11,7 +11,7 @@ Stages (each a function over index arrays, no loop over pairs):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from enum import Enum
 
 import numpy as np
@@ -110,6 +110,11 @@ class PairSituations:
 
     def __len__(self) -> int:
         return int(self.a.shape[0])
+
+    def take(self, index: np.ndarray) -> PairSituations:
+        """The situations at ``index``."""
+        return PairSituations(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[index]
+                                 for f in fields(self)})
 
     @staticmethod
     def concat(parts: list[PairSituations]) -> PairSituations:

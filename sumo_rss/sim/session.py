@@ -92,6 +92,7 @@ class Session:
         self._contacts = ContactTracker()
         self._ego_controlled = False
         self._step_ms = round(spec.step_s * 1000)
+        self._signals: tuple[str, ...] = ()
         self._tmp: str | None = None
         self._open = False
 
@@ -134,6 +135,7 @@ class Session:
             self.close()
             raise SessionError(f"SUMO refused to start scenario {self.spec.source}: {exc}") from exc
         self._open = True
+        self._signals = tuple(libsumo.trafficlight.getIDList())
 
     def close(self) -> None:
         """Close SUMO (flushing its output files) and release the process-wide slot; idempotent."""
@@ -216,7 +218,8 @@ class Session:
             vclass=np.array([s.vclass for s in static], dtype=str),
             vtype=np.array([s.vtype for s in static], dtype=str),
             signals=col(tc.VAR_SIGNALS, int), route_index=col(tc.VAR_ROUTE_INDEX, int),
-            route_edges=tuple(s.route for s in static))
+            route_edges=tuple(s.route for s in static),
+            tls_states={tl: libsumo.trafficlight.getRedYellowGreenState(tl) for tl in self._signals} or None)
 
     # -- ego -------------------------------------------------------------------------------------------------
     @property

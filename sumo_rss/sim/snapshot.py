@@ -54,6 +54,7 @@ class WorldSnapshot:
     signals: np.ndarray  # int: SUMO signal bit set
     route_index: np.ndarray  # int
     route_edges: tuple[tuple[str, ...], ...] | None = None
+    tls_states: dict[str, str] | None = None  # signal id → SUMO state string (one character per link index)
 
     def __len__(self) -> int:
         return int(self.ids.shape[0])
@@ -70,7 +71,7 @@ class WorldSnapshot:
 
     def equals(self, other: WorldSnapshot) -> bool:
         """Exact equality of time, every array and the routes."""
-        if self.time != other.time or self.route_edges != other.route_edges:
+        if self.time != other.time or self.route_edges != other.route_edges or self.tls_states != other.tls_states:
             return False
         mine, theirs = self.array_fields(), other.array_fields()
         return all(np.array_equal(mine[k], theirs[k]) for k in mine)

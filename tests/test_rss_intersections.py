@@ -1,0 +1,131 @@
+"""Responsibility at junctions with real libsumo vehicles commanded step by step (ad_rss preset).
+
+intersection_tls: fixed program, phase 1 (0-30 s) gives N-S through traffic G, N-S left turns g (permissive) and
+W-E red. intersection_priority: W-E major road, S-N minor road with stop signs.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import libsumo
+import pandas as pd
+import pytest
+
+from conftest import NETWORKS, write_scenario
+from sumo_rss import load_scenario
+from sumo_rss.batch.runner import param_resolver
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import AuditResult, Auditor, CollisionInput
+from sumo_rss.sim.session import Session
+
+DT = 0.1  # [s]
+
+
+def _spec(tmp_path, network: str, seconds: float):
+    data = {"network": network, "duration_s": seconds, "demand": {"vtypes": {"car": {"length": 4.5, "width": 1.8}}}}
+    return load_scenario(write_scenario(tmp_path, data))
+
+
+def _add(vid: str, edges: list[str], lane: int, pos: float, speed: float) -> None:
+    libsumo.route.add(f"r_{vid}", edges)
+    libsumo.vehicle.add(vid, f"r_{vid}", typeID="car", depart="now", departLane=str(lane), departPos=str(pos),
+                        departSpeed=str(speed))
+    libsumo.vehicle.setSpeedMode(vid, 0)  # exactly the commanded speed: no lights, no right of way of its own
+    libsumo.vehicle.setLaneChangeMode(vid, 0)
+
+
+def _drive(vid: str, accel: float) -> None:
+    if vid in libsumo.vehicle.getIDList():
+        libsumo.vehicle.setSpeed(vid, max(0.0, libsumo.vehicle.getSpeed(vid) + accel * DT))
+
+
+def _audit(spec, setup: Callable[[], None], control: Callable[[float], None]) -> AuditResult:
+    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "junction")
+    with Session(spec) as session:
+        setup()
+        while not session.finished:
+            control(session.time)
+            seen = len(session.collisions)
+            snap = session.step()
+            auditor.observe(snap, [CollisionInput(c.time, c.collider, c.victim, c.kind)
+                                   for c in session.collisions[seen:]])
+    return auditor.finish()
+
+
+def _junction_episodes(result: AuditResult, a: str, b: str) -> pd.DataFrame:
+    e = result.episodes
+    return e[(e.vehicle_a == a) & (e.vehicle_b == b) & e.situation.str.startswith("intersection")]
+
+
+def test_a_red_light_runner_is_responsible_and_the_green_car_is_not(tmp_path):
+    spec = _spec(tmp_path, "intersection_tls", 14.0)
+
+    def setup():  # both ~85 m before the stop line at 13 m/s; W-E is red, N-S green
+        _add("green", ["N_in", "S_out"], 0, 205.0, 13.0)
+        _add("red", ["W_in", "E_out"], 0, 205.0, 13.0)
+
+    def control(t):
+        _drive("red", 0.0)  # runs the red light
+        _drive("green", -5.0 if t >= 4.0 else 0.0)  # brakes for the intruder
+
+    result = _audit(spec, setup, control)
+    episodes = _junction_episodes(result, "green", "red")
+    assert not episodes.empty
+    first = episodes.iloc[0]
+    assert first.situation == "intersection-priority" and first.conflict_area == "C:1x10"
+    assert first.owed_a == "" and first.owed_b == "int:brake-min"  # the red car must yield; the green may go
+    assert set(episodes.responsible) == {"b"}
+    assert set(result.violations[result.violations.episode_key.isin(episodes.episode_key)].vehicle_id) == {"red"}
+
+
+def test_b_minor_road_car_that_could_not_stop_is_responsible(tmp_path):
+    spec = _spec(tmp_path, "intersection_priority", 12.0)
+
+    def setup():
+        _add("major", ["W_in", "J_E"], 0, 215.0, 13.0)  # ~75 m before the junction
+        _add("minor", ["S_in", "J_N"], 0, 230.0, 11.0)  # ~60 m before its stop line, does not stop
+
+    def control(t):
+        _drive("major", -4.5 if t >= 3.0 else 0.0)
+        _drive("minor", 0.0)
+
+    result = _audit(spec, setup, control)
+    episodes = _junction_episodes(result, "major", "minor")
+    assert not episodes.empty and set(episodes.situation) == {"intersection-yield"}
+    assert episodes.iloc[0].owed_b == "int:brake-min" and episodes.iloc[0].owed_a == ""
+    assert set(episodes.responsible) == {"b"}
+
+
+def test_d_crossing_with_disjoint_time_windows_gives_no_episode(tmp_path):
+    spec = _spec(tmp_path, "intersection_priority", 12.0)
+
+    def setup():
+        _add("major", ["W_in", "J_E"], 0, 20.0, 10.0)  # ~270 m away: arrives after 25 s
+        _add("minor", ["S_in", "J_N"], 0, 270.0, 10.0)  # 20 m before the junction: through in 4 s
+
+    def control(t):
+        _drive("major", 0.0)
+        _drive("minor", 0.0)
+
+    result = _audit(spec, setup, control)
+    assert _junction_episodes(result, "major", "minor").empty
+
+
+def test_e_permissive_left_turn_owes_the_yield_to_oncoming_traffic(tmp_path):
+    spec = _spec(tmp_path, "intersection_tls", 12.0)
+
+    def setup():  # phase 1: N straight G, S left g (permissive)
+        _add("oncoming", ["N_in", "S_out"], 0, 215.0, 12.0)
+        _add("turner", ["S_in", "W_out"], 1, 230.0, 10.0)
+
+    def control(t):
+        _drive("oncoming", -4.5 if t >= 3.0 else 0.0)
+        _drive("turner", 0.0)  # turns without yielding
+
+    result = _audit(spec, setup, control)
+    episodes = _junction_episodes(result, "oncoming", "turner")
+    assert not episodes.empty
+    first = episodes.iloc[0]
+    assert first.situation == "intersection-priority" and first.conflict_area == "C:1x8"
+    assert first.owed_a == "" and first.owed_b == "int:brake-min"
+    assert set(episodes.responsible) == {"b"}
