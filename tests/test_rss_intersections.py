@@ -129,3 +129,26 @@ def test_e_permissive_left_turn_owes_the_yield_to_oncoming_traffic(tmp_path):
     assert first.situation == "intersection-priority" and first.conflict_area == "C:1x8"
     assert first.owed_a == "" and first.owed_b == "int:brake-min"
     assert set(episodes.responsible) == {"b"}
+
+
+def test_every_collision_in_ten_minutes_of_careless_junction_traffic_joins_an_episode(tmp_path):
+    """10 simulated minutes of the shipped intersection_tls demand with drivers who sometimes ignore foes and
+    red lights (SUMO's junction-model parameters), so that SUMO reports real junction collisions."""
+    import tomllib
+
+    from sumo_rss.batch.runner import run_one
+
+    data = tomllib.loads((NETWORKS.parent / "scenarios" / "intersection_tls.toml").read_text())
+    data["duration_s"] = 600.0
+    for vtype in data["demand"]["vtypes"].values():
+        vtype["car_follow_params"] = {"jmIgnoreFoeProb": 0.3, "jmIgnoreFoeSpeed": 20.0,
+                                      "jmIgnoreJunctionFoeProb": 0.3, "jmDriveAfterRedTime": 3.0}
+    spec = load_scenario(write_scenario(tmp_path, data, "careless.toml"))
+    summary = run_one(spec, tmp_path / "out")
+    collisions = pd.read_csv(tmp_path / "out" / "careless" / "0" / "collisions.csv", keep_default_na=False)
+    assert summary.collisions == len(collisions) >= 3
+    assert (collisions.episode_key != "").all()  # no collision without an episode
+    episodes = pd.read_csv(tmp_path / "out" / "careless" / "0" / "episodes.csv", keep_default_na=False)
+    joined = episodes.set_index("episode_key").loc[collisions.episode_key]
+    assert joined.collision.astype(str).eq("True").all()
+    assert (collisions.blamed != "none").mean() >= 0.8  # most contacts have a car that broke its duty

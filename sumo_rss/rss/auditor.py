@@ -171,8 +171,13 @@ class Auditor:
 
     def _record_collision(self, c: CollisionInput) -> None:
         a, b = sorted((c.collider, c.victim))
-        key = (self._uid.get(a, -1) << 32) | self._uid.get(b, -1) if a in self._uid and b in self._uid else None
-        record = self._tracker.collide(key, c.time, c.collider, c.victim) if key is not None else None
+        record = None
+        if a in self._uid and b in self._uid:
+            key = (np.int64(self._uid[a]) << 32) | np.int64(self._uid[b])
+            # The collision ends every open episode of the pair; it is joined to the junction one if any.
+            at_junction = self._tracker.collide(int(key | INTERSECTION_KEY), c.time, c.collider, c.victim)
+            on_road = self._tracker.collide(int(key), c.time, c.collider, c.victim)
+            record = at_junction or on_road
         if record is None:
             blamed, episode_key = "none", ""
         else:
