@@ -152,3 +152,29 @@ def test_every_collision_in_ten_minutes_of_careless_junction_traffic_joins_an_ep
     joined = episodes.set_index("episode_key").loc[collisions.episode_key]
     assert joined.collision.astype(str).eq("True").all()
     assert (collisions.blamed != "none").mean() >= 0.8  # most contacts have a car that broke its duty
+
+
+def test_c_ramp_car_forcing_into_the_motorway_lane_is_responsible(tmp_path):
+    spec = _spec(tmp_path, "merge", 8.0)
+
+    def setup():  # acceleration lane (lane 0 of mw_merge, 270 m, ends) beside motorway lane 1
+        _add("ramp", ["mw_merge", "mw_out"], 0, 50.0, 20.0)
+        _add("motorway", ["mw_merge", "mw_out"], 1, 35.0, 22.0)  # its front bumper 10.5 m behind the ramp car
+
+    state = {"forced": None}
+
+    def control(t):
+        if t >= 0.95 and state["forced"] is None and "ramp" in libsumo.vehicle.getIDList():
+            libsumo.vehicle.changeLane("ramp", 1, 3.0)  # forces in, 3 s manoeuvre
+            state["forced"] = t
+        _drive("ramp", 0.0)
+        forced = state["forced"]
+        _drive("motorway", -4.5 if forced is not None and t >= forced + 1.0 else 0.0)  # keeps its lane, brakes
+
+    result = _audit(spec, setup, control)
+    episodes = result.episodes[(result.episodes.vehicle_a == "motorway") & (result.episodes.vehicle_b == "ramp")]
+    assert not episodes.empty
+    first = episodes.iloc[0]
+    assert first.situation == "merge" and first.trigger == "lat"
+    assert first.responsible == "b"
+    assert set(result.violations.vehicle_id) == {"ramp"}

@@ -44,6 +44,7 @@ class RoadNetwork:
     lane_left: np.ndarray
     lane_right: np.ndarray
     lane_successors: tuple[tuple[int, ...], ...]
+    lane_ends: np.ndarray  # a normal lane without successors on an edge that goes on (e.g. an acceleration lane)
     shapes: LaneShapes
     edge_ids: np.ndarray
     edge_internal: np.ndarray
@@ -98,12 +99,16 @@ class RoadNetwork:
         for k, nxt in enumerate(successors):
             edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt)
         lane_ids = np.array([lane.getID() for lane in lanes], dtype=str)
+        edge_goes_on = [bool(succ) for succ in edge_succ]
+        lane_ends = np.array([not successors[k] and e.getFunction() != "internal" and edge_goes_on[lane_edge[k]]
+                              for k, e in enumerate(lane.getEdge() for lane in lanes)])
         return cls(
             path=path, lane_ids=lane_ids, lane_edge=lane_edge,
             lane_index=np.array([lane.getIndex() for lane in lanes]),
             lane_length=np.array([lane.getLength() for lane in lanes]),
             lane_width=np.array([lane.getWidth() for lane in lanes]),
             lane_offset=offsets, lane_left=left, lane_right=right, lane_successors=tuple(successors),
+            lane_ends=lane_ends,
             shapes=LaneShapes.from_polylines([np.array(lane.getShape(), dtype=float)[:, :2] for lane in lanes]),
             edge_ids=np.array([e.getID() for e in edges], dtype=str),
             edge_internal=np.array([e.getFunction() == "internal" for e in edges]),

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .situations import (FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_LAT, RULE_LON,
-                         PairSituations)
+                         SAME_DIRECTION_CODES, PairSituations)
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +61,7 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
     overlap = sit.lon_gap[rows] < 0.0
     owed_lon = np.where(appeared, ~overlap, prev_lon)
     owed_lat = np.where(appeared, overlap, prev_lat)
-    same = sit.kind[rows] == 0
+    same = np.isin(sit.kind[rows], SAME_DIRECTION_CODES)
     a_rear = sit.a_is_rear[rows]
     rear = np.column_stack([a_rear, ~a_rear])
     must_brake = owed_lon[:, None] & np.where(same[:, None], rear, True)
@@ -73,7 +73,7 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
     roles = _join(np.where(owed_lon[:, None], lon_role, ""), np.where(owed_lat[:, None], lat_role, ""))
     owed = _join(np.where(owed_lon[:, None], lon_owed, ""), np.where(owed_lat[:, None], "lat:brake", ""))
     trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
-    return Duties(must_brake, front_limited, ~same, owed_lat, trigger.astype(object), roles, owed)
+    return Duties(must_brake, front_limited, sit.kind[rows] == 1, owed_lat, trigger.astype(object), roles, owed)
 
 
 def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,

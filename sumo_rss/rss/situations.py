@@ -29,13 +29,15 @@ class SituationType(str, Enum):
 
     SAME_DIRECTION = "same-direction"
     OPPOSITE_DIRECTION = "opposite-direction"
+    MERGE = "merge"  # same direction, one car on a lane that ends beside the other's (an acceleration lane)
     INTERSECTION_PRIORITY = "intersection-priority"  # paths cross in a junction; the signals give one priority
     INTERSECTION_YIELD = "intersection-yield"  # ... the junction's right of way gives one priority
     INTERSECTION_SAME_PRIORITY = "intersection-same-priority"  # ... neither has priority
 
 
 SITUATION_CODES = tuple(SituationType)  # index = code in arrays
-FIRST_INTERSECTION_CODE = 2
+SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the other
+FIRST_INTERSECTION_CODE = 3
 # Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
 RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
 RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
@@ -295,6 +297,12 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
                                 np.where(other_left, frame.lat_reach_as_right[ref], lat_right_o),
                                 p.lat_fluctuation_margin[np.where(other_left, other, ref)],
                                 p.lat_fluctuation_margin[np.where(other_left, ref, other)])
+
+    # A same-direction pair where one car's lane ends beside the other's is a merge.
+    ends_r, ends_o = network.lane_ends[frame.lane[ref]], network.lane_ends[frame.lane[other]]
+    merge = same & ((ends_r & (network.lane_left[frame.lane[ref]] == frame.lane[other])) |
+                    (ends_o & (network.lane_left[frame.lane[other]] == frame.lane[ref])))
+    kind = np.where(merge, SITUATION_CODES.index(SituationType.MERGE), kind)
 
     # Name the pair by id order: a < b.
     a_is_ref = snapshot.ids[ref] < snapshot.ids[other]
