@@ -124,7 +124,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="route/vType file: vehicle sizes and dynamics, routes (default: SUMO's default vType)")
     audit.add_argument("--collisions", type=Path,
                        help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
+    audit.add_argument("--tls-states", type=Path,
+                       help="SUMO signal-state file (--save-tls-states output); default: the net's fixed-time "
+                            "programs (other programs: equal priority, with a warning)")
     audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS, help="RSS parameter preset")
+    audit.add_argument("--no-signal-rule", action="store_true",
+                       help="do not report red-light / avoidable yellow-light entries as violations")
     audit.add_argument("--ego", action="append", default=[], metavar="ID",
                        help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
@@ -216,11 +221,14 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     vehicles = read_vehicle_info(args.vtypes) if args.vtypes else None
     if args.collisions and not args.collisions.is_file():
         raise FcdError(f"{args.collisions}: collision file not found")
+    if args.tls_states and not args.tls_states.is_file():
+        raise FcdError(f"{args.tls_states}: signal-state file not found")
     resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics if vehicles else None)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,
-                       collisions=args.collisions, ego_ids=tuple(args.ego), run_id=run_id)
+                       collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
+                       run_id=run_id, signal_rule=not args.no_signal_rule)
     result.to_csv(args.out)
     write_json(args.out / "rss_params.json", result.params)
     print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "

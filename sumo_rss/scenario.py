@@ -119,6 +119,7 @@ class SumoSpec:
 @dataclass(frozen=True)
 class RssSpec:
     preset: str = "ad_rss"
+    signal_rule: bool = True  # red-light and avoidable yellow-light entries are violations
     role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
     vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
 
@@ -176,7 +177,8 @@ class ScenarioSpec:
             "demand": {"vtypes": {vt.id: vtype(vt, probability=True) for vt in self.demand.vtypes},
                        "flows": [{**_plain(asdict(f)), "depart_lane": lane(f.depart_lane)}
                                  for f in self.demand.flows]},
-            "rss": {"preset": self.rss.preset, **self.rss.role_overrides, "vtypes": dict(self.rss.vtype_overrides)},
+            "rss": {"preset": self.rss.preset, "signal_rule": self.rss.signal_rule, **self.rss.role_overrides,
+                    "vtypes": dict(self.rss.vtype_overrides)},
             "outputs": _plain(asdict(self.outputs)),
         }
         if self.ego is not None:
@@ -396,6 +398,7 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
 
 def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
     preset = t.string("preset", "ad_rss", choices=PRESETS)
+    signal_rule = t.boolean("signal_rule", True)
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
     vtype_ids = {v.id for v in demand.vtypes}
     by_vtype = {}
@@ -405,7 +408,7 @@ def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpe
                           name)
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
-    spec = RssSpec(preset, roles, by_vtype)
+    spec = RssSpec(preset, signal_rule, roles, by_vtype)
     # Resolve every class once so that inconsistent overrides fail here, at load time.
     checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
     for role, vtype_id, vt in checks:

@@ -178,3 +178,29 @@ def test_c_ramp_car_forcing_into_the_motorway_lane_is_responsible(tmp_path):
     assert first.situation == "merge" and first.trigger == "lat"
     assert first.responsible == "b"
     assert set(result.violations.vehicle_id) == {"ramp"}
+
+
+def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path):
+    """N-S through traffic turns yellow at 30 s (red at 33 s). At 8 m/s a car needs 8 m to stop at b_min = 4:
+    'early' is 20 m before the line at 30 s (could stop, crosses on yellow: violation), 'late' 5 m (could not:
+    no violation); 'runner' crosses W-E, red all along (violation)."""
+    network = RoadNetwork.from_file(NETWORKS / "intersection_tls" / "intersection_tls.net.xml")
+    to_line = float(network.lane_length[network.lane_indices(["N_in_0"])[0]])
+    spec = _spec(tmp_path, "intersection_tls", 36.0)
+
+    def setup():
+        _add("late", ["N_in", "S_out"], 0, to_line - 5.0 - 8.0 * 30.0, 8.0)
+        _add("early", ["N_in", "S_out"], 0, to_line - 20.0 - 8.0 * 30.0, 8.0)
+
+    def control(t):
+        if abs(t - 27.0) < 1e-6:
+            _add("runner", ["W_in", "E_out"], 0, to_line - 40.0, 10.0)  # crosses at ~31 s, W-E red until 46 s
+        for vid in ("late", "early", "runner"):
+            _drive(vid, 0.0)
+
+    result = _audit(spec, setup, control)
+    signal = result.violations[result.violations.role == "signal"]
+    assert dict(zip(signal.vehicle_id, signal.constraint)) == {"early": "signal-yellow-light",
+                                                               "runner": "signal-red-light"}
+    assert signal.set_index("vehicle_id").worst_actual.to_dict() == pytest.approx({"early": 8.0, "runner": 10.0})
+    assert (signal.episode_key == "").all()

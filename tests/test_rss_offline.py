@@ -159,3 +159,19 @@ def test_param_resolver_uses_vtype_dynamics_for_krauss():
     resolver = ParamResolver("krauss", vtype_dynamics={"truck": (1.5, 4.0)})
     truck = resolver.get("background", "truck")
     assert (truck.response_time, truck.lon_brake_min, truck.lon_brake_max, truck.lon_accel_max) == (1.5, 4.0, 4.0, 0.0)
+
+
+def test_online_and_offline_audits_agree_at_a_signalised_junction(tmp_path):
+    """Offline, signal states come from the net's fixed-time program and routes from the route file."""
+    proc = _cli("run", str(SCENARIOS / "intersection_tls.toml"), "--duration", "120", "--out", str(tmp_path),
+                "--fcd", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run = tmp_path / "intersection_tls" / "0"
+    proc = _cli("audit", str(run / "fcd.xml"), "--net", str(NETWORKS / "intersection_tls" / "intersection_tls.net.xml"),
+                "--vtypes", str(run / "routes.rou.xml"), "--collisions", str(run / "collisions.xml"), "--out",
+                str(tmp_path / "offline"))
+    assert proc.returncode == 0, proc.stderr
+    episodes = (run / "episodes.csv").read_text()
+    assert "intersection-priority" in episodes  # signal-decided situations were audited
+    for name in ("episodes.csv", "violations.csv", "collisions.csv"):
+        assert (tmp_path / "offline" / name).read_bytes() == (run / name).read_bytes(), name

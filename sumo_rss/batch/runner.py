@@ -106,7 +106,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                                           "versions": run_versions})
         started = time.perf_counter()
         auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), task.run_id,
-                          trace_class=EGO_CLASS)
+                          trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
         ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:

@@ -19,6 +19,7 @@ from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
 from .responsibility import ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
+from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
 
 INTERSECTION_KEY = np.int64(1) << np.int64(62)  # marks a pair's intersection situation (its own episodes)
@@ -103,11 +104,13 @@ class Auditor:
     """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
-                 trace_class: str | None = None):
+                 trace_class: str | None = None, signal_rule: bool = True):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
-        this class (e.g. 'ego') in ``AuditResult.pair_states``."""
+        this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
+        avoidable yellow-light entries as violations (docs/rss.md)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
+        self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self._traces: list[pd.DataFrame] = []
         self.params = params or ParamResolver()
@@ -146,6 +149,8 @@ class Auditor:
             accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
         if self.trace_class is not None:
             self._trace(snapshot.time, keys, situations)
+        if self._signal_rule is not None:
+            self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
         self._prev_ids = set(snapshot.ids.tolist())
         self.last_situations = situations
@@ -214,7 +219,8 @@ class Auditor:
         self._tracker.finish()
         episodes = pd.DataFrame(self._tracker.episode_records, columns=EPISODE_COLUMNS)
         episodes = episodes.sort_values(["t_b_s", "vehicle_a", "vehicle_b"], kind="stable", ignore_index=True)
-        violations = pd.DataFrame(self._tracker.violation_records, columns=VIOLATION_COLUMNS)
+        signal = self._signal_rule.records if self._signal_rule is not None else []
+        violations = pd.DataFrame(self._tracker.violation_records + signal, columns=VIOLATION_COLUMNS)
         violations = violations.sort_values(["t_start_s", "episode_key", "vehicle_id", "constraint"], kind="stable",
                                             ignore_index=True)
         collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)

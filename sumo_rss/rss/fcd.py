@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +20,7 @@ from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
+from .signals import SignalStates
 
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType
 SUMO_DEFAULT_DYNAMICS = (1.0, 4.5)  # tau [s], decel [m/s²]
@@ -182,13 +183,20 @@ class FcdReader:
 
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
-              collisions: Path | None = None, ego_ids: tuple[str, ...] = (), run_id: str = "") -> AuditResult:
+              collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
+              run_id: str = "", signal_rule: bool = True) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
-    overlapping bounding boxes (both gaps negative) of the evaluated pairs."""
+    overlapping bounding boxes (both gaps negative) of the evaluated pairs. Signal states come from SUMO's
+    ``--save-tls-states`` file when given, else from the network's fixed-time programs."""
     reports = read_collisions(collisions) if collisions is not None else None
+    try:
+        signals = SignalStates(network.path, tls_states)
+    except ValueError as exc:
+        raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
-    auditor = Auditor(network, params, run_id)
+    auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
     for snapshot in FcdReader(fcd, network, vehicles, ego_ids):
+        snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if reports is not None:
             new = contacts.step(reports.get(snapshot.time, []))
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind) for c in new])

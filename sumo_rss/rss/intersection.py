@@ -115,7 +115,7 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     return IntersectionSafety(able, in_front, no_overlap, a_front, b_front)
 
 
-def _next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
+def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
     """The route edge after each vehicle's current edge, -1 where unknown (no route, or not on it)."""
     if route_edges.shape[1] < 2:
         return np.full(len(edge), -1, dtype=int)
@@ -135,7 +135,7 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     # Entries (vehicle row, link, front bumper position along the link's path [m], negative before it).
     inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
     to_end = network.lane_length[lane] - snapshot.lane_pos
-    next_edge = _next_route_edge(frame.route_edges, frame.edge)
+    next_edge = next_route_edge(frame.route_edges, frame.edge)
     cand = junctions.lane_links[lane]
     ok = (cand >= 0) & (to_end[:, None] <= horizon) & \
         ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
@@ -162,7 +162,9 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     ranks = junctions.signal_ranks(snapshot.tls_states)
     rank_a, rank_b = ranks[la], ranks[lb]
     by_signal = (rank_a >= 0) & (rank_b >= 0) & (rank_a != rank_b)
-    static = junctions.static_priority[la, lb]
+    # A signalised link whose state is unknown (offline, actuated program) gives no priority either way.
+    unknown = ((junctions.link_tls_index[la] >= 0) & (rank_a < 0)) | ((junctions.link_tls_index[lb] >= 0) & (rank_b < 0))
+    static = np.where(unknown, 0, junctions.static_priority[la, lb])
     priority = np.where(by_signal, np.where(rank_a > rank_b, PRIORITY_A, PRIORITY_B),
                         np.where(static > 0, PRIORITY_A, np.where(static < 0, PRIORITY_B, PRIORITY_SAME)))
     kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))

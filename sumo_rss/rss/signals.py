@@ -1,0 +1,142 @@
+"""Traffic signals in the audit: the red/yellow-light rule and signal states for offline audits.
+
+The rule (beyond the paper; on by default): a car that crosses the stop line of a signalised link while it is
+red, or while it is yellow although the car could have stopped at b_min when it turned yellow, commits a
+violation of its own kind (no pair episode needed).
+
+Offline, signal states come from SUMO's ``--save-tls-states`` output when given, else from the network's own
+programs when they are fixed-time; other programs are unknown, and their links are treated as equal priority.
+"""
+from __future__ import annotations
+
+import warnings
+import xml.etree.ElementTree as ET
+from bisect import bisect_right
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import sumolib
+
+from ..road.junctions import JunctionModel
+from ..road.network import RoadNetwork
+from ..sim.snapshot import WorldSnapshot
+from .intersection import next_route_edge
+from .situations import VehicleFrame
+
+RED, YELLOW = "rR", "yY"
+
+
+class SignalConstraint(str, Enum):
+    """Signal violations (values go into violations.csv, role 'signal', bound 0 m/s, actual = entry speed)."""
+
+    RED_LIGHT = "signal-red-light"  # crossed the stop line on red
+    YELLOW_LIGHT = "signal-yellow-light"  # crossed on yellow although it could have stopped at b_min
+
+
+class SignalRule:
+    """Watches every car approaching a signalised link and reports red- and yellow-light entries."""
+
+    def __init__(self, network: RoadNetwork, junctions: JunctionModel, run_id: str = ""):
+        self.network = network
+        self.junctions = junctions
+        self.run_id = run_id
+        self.records: list[dict] = []
+        self._approach: dict[str, tuple[int, str, bool]] = {}  # id → (link, its state, could stop at yellow)
+
+    def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
+        j = self.junctions
+        if not snapshot.tls_states:
+            return
+        lane = frame.lane
+        inside = j.lane_link[lane]
+        link = self._approach_links(snapshot, frame)
+        approach = {}
+        for k in np.flatnonzero((link >= 0) | (inside >= 0)):
+            vid = str(snapshot.ids[k])
+            before = self._approach.get(vid)
+            if inside[k] >= 0:
+                if before is not None and before[0] == inside[k]:  # crossed the stop line during this step
+                    self._judge(vid, str(snapshot.vclass[k]), before, float(snapshot.speed[k]), snapshot.time)
+                continue
+            lk = int(link[k])
+            state = snapshot.tls_states.get(j.link_tls[lk], "")
+            char = state[j.link_tls_index[lk]] if 0 <= j.link_tls_index[lk] < len(state) else ""
+            could_stop = False
+            if char and char in YELLOW:
+                if before is not None and before[0] == lk and before[1] in YELLOW:
+                    could_stop = before[2]  # decided when it turned yellow
+                else:
+                    to_line = self.network.lane_length[lane[k]] - snapshot.lane_pos[k]
+                    b_min = frame.params.lon_brake_min[k]
+                    could_stop = bool(snapshot.speed[k] ** 2 / (2.0 * b_min) <= to_line)
+            approach[vid] = (lk, char, could_stop)
+        self._approach = approach
+
+    def _approach_links(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> np.ndarray:
+        """The signalised link each car on an approach lane takes (by its route), -1 if none or unknown."""
+        j = self.junctions
+        cand = j.lane_links[frame.lane]
+        next_edge = next_route_edge(frame.route_edges, frame.edge)
+        match = (cand >= 0) & (j.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]) & \
+            (j.link_tls_index[np.maximum(cand, 0)] >= 0)
+        has = match.any(axis=1)
+        return np.where(has, cand[np.arange(len(cand)), match.argmax(axis=1)], -1)
+
+    def _judge(self, vid: str, vclass: str, before: tuple[int, str, bool], speed: float, time: float) -> None:
+        _, char, could_stop = before
+        if char and char in RED:
+            constraint = SignalConstraint.RED_LIGHT
+        elif char and char in YELLOW and could_stop:
+            constraint = SignalConstraint.YELLOW_LIGHT
+        else:
+            return
+        self.records.append({"run_id": self.run_id, "episode_key": "", "vehicle_id": vid, "vehicle_class": vclass,
+                             "role": "signal", "constraint": constraint.value, "bound": 0.0,
+                             "worst_actual": speed, "excess": speed, "t_start_s": time, "t_end_s": time})
+
+
+class SignalStates:
+    """Signal states over time for offline audits: ``states(time) -> {signal: state string}``."""
+
+    def __init__(self, net_file: Path, saved_states: Path | None = None):
+        self._saved: dict[str, tuple[list[float], list[str]]] = {}
+        self._programs: dict[str, tuple[float, list[tuple[float, str]]]] = {}
+        if saved_states is not None:
+            self._read_saved(saved_states)
+            return
+        net = sumolib.net.readNet(str(net_file), withPrograms=True)
+        for tls in net.getTrafficLights():
+            programs = list(tls.getPrograms().values())
+            if len(programs) != 1 or programs[0].getType() != "static":
+                warnings.warn(f"{net_file}: signal {tls.getID()} has no single fixed-time program; its links are "
+                              "audited as equal priority (give --tls-states for the real states)", stacklevel=2)
+                continue
+            phases = [(float(p.duration), p.state) for p in programs[0].getPhases()]
+            self._programs[tls.getID()] = (float(getattr(programs[0], '_offset', 0) or 0.0), phases)
+
+    def _read_saved(self, path: Path) -> None:
+        try:
+            for _, elem in ET.iterparse(path, events=("end",)):
+                if elem.tag == "tlsState":
+                    times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
+                    times.append(float(elem.get("time", "nan")))
+                    states.append(elem.get("state", ""))
+        except (ET.ParseError, ValueError) as exc:
+            raise ValueError(f"{path}: not a readable SUMO signal-state file ({exc})") from exc
+
+    def states(self, time: float) -> dict[str, str] | None:
+        out = {}
+        for tl, (times, states) in self._saved.items():
+            k = bisect_right(times, time + 1e-9) - 1
+            if k >= 0:
+                out[tl] = states[k]
+        for tl, (offset, phases) in self._programs.items():
+            cycle = sum(d for d, _ in phases)
+            t = (time - offset) % cycle
+            for duration, state in phases:
+                if t < duration - 1e-9:
+                    out[tl] = state
+                    break
+                t -= duration
+        return out or None
