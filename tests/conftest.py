@@ -36,3 +36,23 @@ def write_scenario(folder: Path, data: dict, name: str = "scenario.toml") -> Pat
     path = folder / name
     path.write_bytes(tomli_w.dumps(data).encode("utf-8"))
     return path
+
+
+def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test"):
+    """Co-simulate ``spec`` for ``seconds``, calling ``setup()`` once and ``control(time)`` before every step
+    (libsumo commands), and audit every step; returns the AuditResult."""
+    from sumo_rss.batch.runner import param_resolver
+    from sumo_rss.road.network import RoadNetwork
+    from sumo_rss.rss.auditor import Auditor, CollisionInput
+    from sumo_rss.sim.session import Session
+
+    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), run_id)
+    with Session(spec) as session:
+        setup()
+        while session.steps < round(seconds / spec.step_s):
+            control(session.time)
+            seen = len(session.collisions)
+            snapshot = session.step()
+            auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
+                                       for c in session.collisions[seen:]])
+    return auditor.finish()

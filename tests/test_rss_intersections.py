@@ -11,12 +11,10 @@ import libsumo
 import pandas as pd
 import pytest
 
-from conftest import NETWORKS, write_scenario
+from conftest import NETWORKS, audit_commanded, write_scenario
 from sumo_rss import load_scenario
-from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
-from sumo_rss.rss.auditor import AuditResult, Auditor, CollisionInput
-from sumo_rss.sim.session import Session
+from sumo_rss.rss.auditor import AuditResult
 
 DT = 0.1  # [s]
 
@@ -40,16 +38,7 @@ def _drive(vid: str, accel: float) -> None:
 
 
 def _audit(spec, setup: Callable[[], None], control: Callable[[float], None]) -> AuditResult:
-    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "junction")
-    with Session(spec) as session:
-        setup()
-        while not session.finished:
-            control(session.time)
-            seen = len(session.collisions)
-            snap = session.step()
-            auditor.observe(snap, [CollisionInput(c.time, c.collider, c.victim, c.kind)
-                                   for c in session.collisions[seen:]])
-    return auditor.finish()
+    return audit_commanded(spec, setup, control, spec.duration_s, "junction")
 
 
 def _junction_episodes(result: AuditResult, a: str, b: str) -> pd.DataFrame:

@@ -8,12 +8,9 @@ import libsumo
 import pandas as pd
 import pytest
 
-from conftest import write_scenario
+from conftest import audit_commanded, write_scenario
 from sumo_rss import load_scenario
-from sumo_rss.batch.runner import param_resolver
-from sumo_rss.road.network import RoadNetwork
-from sumo_rss.rss.auditor import AuditResult, Auditor, CollisionInput
-from sumo_rss.sim.session import Session
+from sumo_rss.rss.auditor import AuditResult
 
 DT = 0.1  # [s]
 
@@ -33,17 +30,11 @@ def _add(vid: str, lane: int, pos: float, speed: float) -> None:
 
 
 def _audit(spec, setup: Callable[[], None], control: Callable[[float], None], seconds: float) -> AuditResult:
-    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "test")
-    with Session(spec) as session:
+    def setup_route() -> None:
         libsumo.route.add("hw", ["hw0", "hw1", "hw2"])
         setup()
-        while session.steps < round(seconds / DT):
-            control(session.time)
-            seen = len(session.collisions)
-            snapshot = session.step()
-            auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
-                                       for c in session.collisions[seen:]])
-    return auditor.finish()
+
+    return audit_commanded(spec, setup_route, control, seconds)
 
 
 def _accelerate(vid: str, accel: float) -> None:
