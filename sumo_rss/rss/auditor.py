@@ -132,8 +132,9 @@ class Auditor:
         uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
-                                           horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0)
-        if len(crossing):
+                                           horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0) \
+            if self.junctions.conflicts else None
+        if crossing is not None and len(crossing):
             crossing_keys = ((uid[crossing.a] << 32) | uid[crossing.b]) | INTERSECTION_KEY
             # Several conflict areas per pair: the pair is dangerous if any is; keep the most critical one
             # (dangerous first, then the yielding car closest to needing to stop).

@@ -45,6 +45,10 @@ def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.nd
     step before (valid where ``seen``); ``appeared``: a car of the pair entered the data this step."""
     kind = sit.kind[rows]
     crossing = kind >= FIRST_INTERSECTION_CODE
+    if not crossing.any():
+        return _road_duties(sit, rows, prev_rules, seen, appeared)
+    if crossing.all():
+        return _intersection_duties(sit, rows, prev_rules, seen, appeared)
     road = _road_duties(sit, rows, prev_rules, seen, appeared)
     junction = _intersection_duties(sit, rows, prev_rules, seen, appeared)
     pick = crossing[:, None]
