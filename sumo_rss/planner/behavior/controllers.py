@@ -1,0 +1,149 @@
+"""Controllers and vehicle model of EUDM's forward simulation (epsilon.md §3), vectorised over arrays.
+
+- :func:`acc_acceleration`: Treiber-Kesting ACC (improved IDM + constant-acceleration heuristic), with the port's
+  fixes: the heuristic uses the net gap, the braking floor uses the step ``dt`` (so the speed cannot go negative),
+  and a desired speed of 0 means "stop".
+- :func:`pure_pursuit_steer`: steering towards a look-ahead point.
+- :func:`bicycle_step`: the "ideal steer" kinematic bicycle (rear-axle reference) with acceleration/jerk,
+  lateral-acceleration/jerk and steer-angle/rate limits, integrated with RK4.
+Units: m, s, m/s, m/s², rad.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+V0_STOP = 1e-3  # [m/s] a desired speed below this means "stop"
+
+
+@dataclass(frozen=True)
+class IdmParams:
+    """Car-following parameters (epsilon.md §3.1: ego s0 2.0, T 1.0, a 1.0; agents s0 1.0, T 0.5, a 2.0)."""
+
+    s0: float = 2.0  # [m] minimum spacing
+    headway: float = 1.0  # [s] T
+    accel: float = 1.0  # [m/s²] a
+    comfort_brake: float = 1.67  # [m/s²] b
+    hard_brake: float = 5.0  # [m/s²] acceleration floor
+    exponent: float = 4.0  # δ
+    coolness: float = 0.99  # c of the ACC model
+
+
+@dataclass(frozen=True)
+class VehicleLimits:
+    """Limits of the bicycle model (epsilon.md §3.1, ego values as defaults)."""
+
+    wheelbase: float = 2.8  # [m]
+    max_accel: float = 1.0  # [m/s²]
+    hard_brake: float = 5.0  # [m/s²]
+    accel_jerk: float = 3.0  # [m/s³]
+    brake_jerk: float = 5.0  # [m/s³]
+    lat_accel: float = 1.2  # [m/s²]
+    lat_jerk: float = 1.8  # [m/s³]
+    max_steer: float = 0.785  # [rad]
+    max_steer_rate: float = 0.39  # [rad/s]
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
+
+
+def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np.ndarray:
+    """ACC acceleration [m/s²] at speed ``v`` with desired speed ``v0``, a leader at ``v_lead`` (clamped ≥ 0) and
+    net bumper gap ``gap`` [m] (use a large gap and v_lead = v for a free road). Clipped to [−hard_brake, a]."""
+    v, v0, v_lead, gap = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (v, v0, v_lead, gap)))
+    v_lead = np.maximum(v_lead, 0.0)
+    a, b, delta = p.accel, p.comfort_brake, p.exponent
+    s_net = np.maximum(gap, 1e-3)
+    s_star = p.s0 + np.maximum(0.0, v * p.headway + v * (v - v_lead) / (2.0 * np.sqrt(a * b)))
+    z = s_star / s_net
+    stop = v0 < V0_STOP
+    v0_safe = np.where(stop, 1.0, v0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        a_free = np.where(v <= v0_safe, a * (1.0 - (v / v0_safe) ** delta),
+                          -b * (1.0 - (v0_safe / np.maximum(v, 1e-9)) ** (a * delta / b)))
+        a_free = np.where(stop, -b, a_free)
+        below = np.where(z >= 1.0, a * (1.0 - z * z),
+                         np.where(np.abs(a_free) > 1e-12, a_free * (1.0 - z ** (2.0 * a / a_free)), 0.0))
+    above = np.where(z >= 1.0, a_free + a * (1.0 - z * z), a_free)
+    a_iidm = np.clip(np.where(v <= v0_safe, below, above), -p.hard_brake, a)
+    # Constant-acceleration heuristic, leader braking at b, on the net gap.
+    a_cah = -b * v * v / (v_lead * v_lead + 2.0 * b * s_net)
+    blended = (1.0 - p.coolness) * a_iidm + p.coolness * (a_cah + b * np.tanh((a_iidm - a_cah) / b))
+    return np.clip(np.where(a_iidm >= a_cah, a_iidm, blended), -p.hard_brake, a)
+
+
+def idm_speed_command(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, dt: float) -> np.ndarray:
+    """Speed command [m/s] for the end of a step of ``dt`` s; braking never goes below standstill."""
+    v = np.asarray(v, dtype=float)
+    accel = np.maximum(acc_acceleration(v, v0, v_lead, gap, p), -np.minimum(p.hard_brake, v / dt))
+    return np.maximum(v + accel * dt, 0.0)
+
+
+def lookahead(v: Any, gain: float, minimum: float, maximum: float) -> np.ndarray:
+    """Pure-pursuit look-ahead distance ℓ = clamp(gain·v, min, max) [m]."""
+    return np.clip(gain * np.asarray(v, dtype=float), minimum, maximum)
+
+
+def pure_pursuit_steer(x: Any, y: Any, heading: Any, target_x: Any, target_y: Any, wheelbase: float) -> np.ndarray:
+    """Steering angle [rad] towards the target point: δ = atan2(2·L·sin α, ‖target − position‖), α the bearing
+    of the target relative to the heading (rear-axle reference)."""
+    dx, dy = np.asarray(target_x) - np.asarray(x), np.asarray(target_y) - np.asarray(y)
+    alpha = _wrap(np.arctan2(dy, dx) - np.asarray(heading))
+    return np.arctan2(2.0 * wheelbase * np.sin(alpha), np.hypot(dx, dy))
+
+
+@dataclass(frozen=True, eq=False)
+class BicycleState:
+    """Rear-axle pose and motion of many vehicles (arrays of one shape)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray  # [rad]
+    speed: np.ndarray  # [m/s]
+    accel: np.ndarray  # [m/s²] applied during the last step
+    curvature: np.ndarray  # [1/m] tan(steer) / wheelbase
+
+
+def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: VehicleLimits,
+                 dt: float) -> BicycleState:
+    """Advance by ``dt`` s towards the commanded speed and steering, within the limits (epsilon.md §3.2)."""
+    L = limits.wheelbase
+    v = state.speed
+    steer = np.arctan(state.curvature * L)
+    v_cmd = np.maximum(np.asarray(speed_cmd, dtype=float), 0.0)
+    steer_cmd = np.clip(np.asarray(steer_cmd, dtype=float), -limits.max_steer, limits.max_steer)
+    # Longitudinal shaping: jerk, then acceleration limits.
+    jerk = np.clip(((v_cmd - v) / dt - state.accel) / dt, -limits.brake_jerk, limits.accel_jerk)
+    accel = np.clip(state.accel + jerk * dt, -limits.hard_brake, limits.max_accel)
+    v_new = np.maximum(v + accel * dt, 0.0)
+    # Lateral shaping: lateral jerk and acceleration limits, then the steer rate.
+    a_lat_des = v_new * v_new * np.tan(steer_cmd) / L
+    a_lat_now = v * v * state.curvature
+    a_lat = np.clip(a_lat_now + np.clip((a_lat_des - a_lat_now) / dt, -limits.lat_jerk, limits.lat_jerk) * dt,
+                    -limits.lat_accel, limits.lat_accel)
+    steer_target = np.arctan(a_lat * L / np.maximum(v_new * v_new, 0.01))
+    rate = np.clip(_wrap(steer_target - steer) / dt, -limits.max_steer_rate, limits.max_steer_rate)
+    steer_new = steer + rate * dt
+    # Integrate ẋ = v cos θ, ẏ = v sin θ, θ̇ = v tan δ / L with v and δ linear over the step (RK4, 2 substeps).
+    x, y, th = state.x.astype(float), state.y.astype(float), state.heading.astype(float)
+    dv, ds = (v_new - v) / dt, (steer_new - steer) / dt
+
+    def deriv(t: float, th_: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        vt, st = v + dv * t, steer + ds * t
+        return vt * np.cos(th_), vt * np.sin(th_), vt * np.tan(st) / L
+
+    h = dt / 2.0
+    t = 0.0
+    for _ in range(2):
+        k1 = deriv(t, th)
+        k2 = deriv(t + h / 2, th + h / 2 * k1[2])
+        k3 = deriv(t + h / 2, th + h / 2 * k2[2])
+        k4 = deriv(t + h, th + h * k3[2])
+        x = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        y = y + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        th = th + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+        t += h
+    return BicycleState(x, y, _wrap(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)
