@@ -68,7 +68,8 @@ def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np
         below = np.where(z >= 1.0, a * (1.0 - z * z),
                          np.where(np.abs(a_free) > 1e-12, a_free * (1.0 - z ** (2.0 * a / a_free)), 0.0))
     above = np.where(z >= 1.0, a_free + a * (1.0 - z * z), a_free)
-    a_iidm = np.clip(np.where(v <= v0_safe, below, above), -p.hard_brake, a)
+    # "Stop" (v0 = 0) is always the decelerating regime: the below-v0 formula assumes a_free > 0.
+    a_iidm = np.clip(np.where((v <= v0_safe) & ~stop, below, above), -p.hard_brake, a)
     # Constant-acceleration heuristic, leader braking at b, on the net gap.
     a_cah = -b * v * v / (v_lead * v_lead + 2.0 * b * s_net)
     blended = (1.0 - p.coolness) * a_iidm + p.coolness * (a_cah + b * np.tanh((a_iidm - a_cah) / b))
