@@ -1,0 +1,49 @@
+"""CFB scenario branching on crafted intention probabilities (columns: keep, left, right)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sumo_rss.planner.behavior.cfb import branch_scenarios, uncertain_agents
+
+PROBS = np.array([[0.90, 0.05, 0.05],   # agent 0: confident keep
+                  [0.50, 0.40, 0.10],   # agent 1: keep or left
+                  [0.30, 0.10, 0.60],   # agent 2: right or keep
+                  [0.05, 0.90, 0.05]])  # agent 3: confident left
+
+
+def test_uncertain_agents_are_those_with_close_top_two():
+    assert uncertain_agents(PROBS).tolist() == [False, True, False, False]  # 0.5 vs 0.4; 0.6 vs 0.3 is 0.3 apart
+
+
+def test_top_k_combinations_with_renormalised_weights():
+    branched = np.array([False, True, True, False])
+    s = branch_scenarios(PROBS, branched, k=4)
+    # Combinations of agents 1 and 2: (keep, right) 0.30, (left, right) 0.24, (keep, keep) 0.15, (left, keep) 0.12.
+    assert s.intentions.tolist() == [[0, 0, 2, 1], [0, 1, 2, 1], [0, 0, 0, 1], [0, 1, 0, 1]]
+    total = 0.30 + 0.24 + 0.15 + 0.12
+    np.testing.assert_allclose(s.weights, [0.30 / total, 0.24 / total, 0.15 / total, 0.12 / total])
+    assert s.weights.sum() == pytest.approx(1.0)
+
+
+def test_unbranched_agents_keep_their_map_intention_and_one_scenario_without_branching():
+    s = branch_scenarios(PROBS, np.zeros(4, dtype=bool))
+    assert s.intentions.tolist() == [[0, 0, 2, 1]] and s.weights.tolist() == [1.0]
+    s = branch_scenarios(PROBS, np.array([False, True, False, False]), k=2)
+    assert s.intentions.tolist() == [[0, 0, 2, 1], [0, 1, 2, 1]]
+    np.testing.assert_allclose(s.weights, [0.5 / 0.9, 0.4 / 0.9])
+
+
+def test_rule_based_belief_matches_the_one_hot_rule_far_from_its_thresholds():
+    from sumo_rss.planner.behavior.intention import intention_probabilities
+
+    p = intention_probabilities(offset=[0.0, 1.0, -1.0, 1.0, 1.0], lat_speed=[0.0, 1.0, -1.0, 1.0, -1.0],
+                                has_left=[True, True, True, False, True], has_right=[True, True, True, True, True])
+    assert np.argmax(p, axis=1).tolist() == [0, 1, 2, 0, 0]  # keep; left; right; no left lane; drifting back
+    assert p[1, 1] > 0.95 and p[2, 2] > 0.95 and p[3, 1] == 0.0
+    np.testing.assert_allclose(p.sum(axis=1), 1.0)
+    # Well past the offset threshold (1.2 m), at the speed threshold 0.35 m/s, keep and left are equally likely;
+    # at both thresholds the left probability is 0.5 · 0.5 (both conditions must hold).
+    mid = intention_probabilities([1.2], [0.35], [True], [True])
+    assert mid[0, 0] == pytest.approx(mid[0, 1], abs=0.02)
+    assert intention_probabilities([0.4], [0.35], [True], [True])[0, 1] == pytest.approx(0.25)
