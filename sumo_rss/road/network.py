@@ -26,7 +26,7 @@ class RoadNetwork:
     """Lanes (internal junction lanes included) and edges of one SUMO network.
 
     Per lane k: ``lane_ids[k]``, ``lane_edge[k]`` (edge index), ``lane_index[k]`` (0 = rightmost),
-    ``lane_length[k]``, ``lane_width[k]`` [m], ``lane_offset[k]`` (centre's offset from the edge's right border,
+    ``lane_length[k]``, ``lane_width[k]`` [m], ``lane_speed[k]`` [m/s], ``lane_offset[k]`` (centre's offset from the edge's right border,
     [m]), ``lane_left[k]`` / ``lane_right[k]`` (neighbour lane index or -1), ``lane_successors[k]``.
     Per edge e: ``edge_ids[e]``, ``edge_internal[e]``, ``edge_opposite[e]`` (edge between the same nodes in
     the other direction, or -1) and ``edge_distance[e, f]``: the shortest distance [m] from the start of e to the
@@ -40,6 +40,7 @@ class RoadNetwork:
     lane_index: np.ndarray
     lane_length: np.ndarray
     lane_width: np.ndarray
+    lane_speed: np.ndarray  # [m/s] speed limit
     lane_offset: np.ndarray
     lane_left: np.ndarray
     lane_right: np.ndarray
@@ -107,6 +108,7 @@ class RoadNetwork:
             lane_index=np.array([lane.getIndex() for lane in lanes]),
             lane_length=np.array([lane.getLength() for lane in lanes]),
             lane_width=np.array([lane.getWidth() for lane in lanes]),
+            lane_speed=np.array([lane.getSpeed() for lane in lanes]),
             lane_offset=offsets, lane_left=left, lane_right=right, lane_successors=tuple(successors),
             lane_ends=lane_ends,
             shapes=LaneShapes.from_polylines([np.array(lane.getShape(), dtype=float)[:, :2] for lane in lanes]),

@@ -1,0 +1,103 @@
+"""Lanes for planning: the ego's current lane and its left/right neighbours as chains of lanes along its route,
+each a polyline with its own Frenet frame (epsilon.md §2.1, §2.4, §2.7)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..road.frenet import LaneShapes
+from ..road.network import RoadNetwork
+
+CURVE_LAT_ACCEL = 1.2  # [m/s²] lateral acceleration limit of the reference speed (epsilon.md §2.7)
+RIGHT, CURRENT, LEFT = 0, 1, 2  # chain order
+
+
+@dataclass(frozen=True, eq=False)
+class LaneChains:
+    """Up to three lane chains (right, current, left; None where no neighbour exists).
+
+    ``shapes`` holds the chains that exist, ``chain_of[RIGHT|CURRENT|LEFT]`` their row in it (-1 if absent),
+    ``lanes[c]`` the lane indices of chain c, ``start_s[c]`` where the ego's own lane starts along chain c [m],
+    ``speed_limit[c]`` the lowest limit along it [m/s].
+    """
+
+    shapes: LaneShapes
+    chain_of: np.ndarray  # [3]
+    lanes: tuple[tuple[int, ...], ...]
+    start_s: np.ndarray
+    speed_limit: np.ndarray
+
+    def exists(self, which: int) -> bool:
+        return bool(self.chain_of[which] >= 0)
+
+    def project(self, which: int, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(s, d) of points on chain ``which``; s measured from the start of the ego's own lane [m]."""
+        row = int(self.chain_of[which])
+        s, d, _ = self.shapes.project(np.full(len(np.atleast_1d(x)), row), np.atleast_1d(x), np.atleast_1d(y))
+        return s - self.start_s[row], d
+
+    def reference_speed(self, which: int, s_from: float, horizon: float, desired: float) -> float:
+        """floor(min(desired, speed limit, √(a_lat/|κ|) over [s_from, s_from + horizon])) [m/s]."""
+        row = int(self.chain_of[which])
+        n = int(self.shapes.count[row])
+        pts, cum = self.shapes.points[row, :n], self.shapes.cumulative[row, :n]
+        heading = np.unwrap(np.arctan2(np.diff(pts[:, 1]), np.diff(pts[:, 0])))
+        seg_mid = 0.5 * (cum[1:] + cum[:-1]) - self.start_s[row]
+        kappa = np.abs(np.gradient(heading, seg_mid)) if len(heading) > 1 else np.zeros(1)
+        window = (seg_mid >= s_from - 1.0) & (seg_mid <= s_from + horizon)
+        v_curve = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[window], 1e-9)).min(initial=np.inf)
+        return float(np.floor(min(desired, self.speed_limit[row], v_curve)))
+
+
+def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: float = 250.0,
+                backward: float = 50.0) -> LaneChains:
+    """Chains through the ego's lane and its neighbours, ``forward`` m ahead along the route (any successor where
+    the route says nothing) and ``backward`` m behind."""
+    predecessors: dict[int, list[int]] = {}
+    for k, succ in enumerate(network.lane_successors):
+        for j in succ:
+            predecessors.setdefault(j, []).append(k)
+    route_set = set(int(e) for e in route if e >= 0)
+    starts = [int(network.lane_right[lane]), lane, int(network.lane_left[lane])]
+    chains, chain_of, start_s, limits, polylines = [], np.full(3, -1), [], [], []
+    for which, first in enumerate(starts):
+        if first < 0:
+            continue
+        ahead = _walk(network, first, network.lane_successors, route_set, forward, own=True)
+        behind = _walk(network, first, predecessors, route_set, backward, own=False)[::-1]
+        chain = tuple(behind + ahead)
+        pts: list[np.ndarray] = []
+        offset = 0.0
+        for k in chain:
+            shape = network.shapes.points[k, : network.shapes.count[k]]
+            if k == first:
+                offset = float(sum(network.shapes.cumulative[j, network.shapes.count[j] - 1] for j in behind))
+            pts.extend(shape if not pts else shape[1:])
+        chain_of[which] = len(chains)
+        chains.append(chain)
+        start_s.append(offset)
+        limits.append(float(network.lane_speed[list(chain)].min()))
+        polylines.append(np.asarray(pts, dtype=float))
+    return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
+                      np.array(limits))
+
+
+def _walk(network: RoadNetwork, lane: int, graph: object, route: set[int], length: float, *,
+          own: bool) -> list[int]:
+    """Lanes from ``lane`` (included when ``own``) along ``graph`` until ``length`` m, preferring lanes whose
+    edge (or the edge a junction lane leads into) is on the route."""
+    out = [lane] if own else []
+    total, current = 0.0 if own else 0.0, lane
+    seen = {lane}
+    while total < length:
+        options = [k for k in graph.get(current, ()) if k not in seen] if isinstance(graph, dict) else \
+            [k for k in graph[current] if k not in seen]
+        if not options:
+            break
+        on_route = [k for k in options if int(network.edge_exit[network.lane_edge[k]]) in route]
+        current = (on_route or options)[0]
+        seen.add(current)
+        out.append(current)
+        total += float(network.lane_length[current])
+    return out

@@ -1,0 +1,67 @@
+"""Planning lanes and key vehicles on the shipped nets (highway lanes 3.5 m wide; hw0 straight along y = -8.75,
+-5.25, -1.75 for lanes 0, 1, 2)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import NETWORKS
+from sumo_rss.planner.behavior.key_vehicles import front_range, key_vehicles
+from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.sim.snapshot import WorldSnapshot
+
+
+def _net(name: str) -> RoadNetwork:
+    return RoadNetwork.from_file(NETWORKS / name / f"{name}.net.xml")
+
+
+def test_chains_follow_the_route_through_junctions():
+    net = _net("highway")
+    chains = lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1", "hw2"]))
+    names = [[str(net.lane_ids[k]) for k in chain] for chain in chains.lanes]
+    assert names[CURRENT][:3] == ["hw0_1", ":h1_0_1", "hw1_1"] and names[LEFT][0] == "hw0_2"
+    s, d = chains.project(CURRENT, np.array([100.0, 100.0]), np.array([-5.25, -1.75]))
+    np.testing.assert_allclose(s, [100.0, 100.0])
+    np.testing.assert_allclose(d, [0.0, 3.5])
+    # Limit 33.33 m/s; the 2000 m curve allows √(1.2·2000) = 49 m/s: the reference speed is floor(33.33).
+    assert chains.reference_speed(CURRENT, 800.0, 200.0, desired=40.0) == 33.0
+
+
+def test_acceleration_lane_chain_ends_and_has_no_right_neighbour():
+    net = _net("merge")
+    lane = int(net.lane_indices(["mw_merge_0"])[0])
+    chains = lane_chains(net, lane, net.edge_indices(["mw_merge", "mw_out"]))
+    assert not chains.exists(RIGHT) and chains.exists(LEFT)
+    current = [str(net.lane_ids[k]) for k in chains.lanes[chains.chain_of[CURRENT]]]
+    assert current[-1] == "mw_merge_0" and current[0] == "ramp_0"  # the ramp behind, nothing after the lane end
+    ramp_length = float(net.lane_length[net.lane_indices(["ramp_0"])[0]])
+    assert chains.start_s[chains.chain_of[CURRENT]] > ramp_length  # s is measured from the ego's own lane
+
+
+def _snapshot(xs, ys, speeds):
+    n = len(xs)
+    f = np.zeros(n)
+    return WorldSnapshot(time=0.0, ids=np.array([f"v{i}" for i in range(n)]), x=np.asarray(xs, float),
+                         y=np.asarray(ys, float), heading=f, speed=np.asarray(speeds, float), accel=f, lat_speed=f,
+                         length=np.full(n, 4.5), width=np.full(n, 1.8), lane_id=np.array(["hw0_1"] * n),
+                         edge_id=np.array(["hw0"] * n), lane_index=np.ones(n, int), lane_pos=np.asarray(xs, float),
+                         lat_pos=f, vclass=np.array(["background"] * n), vtype=np.array(["car"] * n),
+                         signals=np.zeros(n, int), route_index=np.zeros(n, int))
+
+
+def test_key_vehicles_by_lane_and_range():
+    net = _net("highway")
+    chains = lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1", "hw2"]))
+    # Ego (row 0) at x = 300 in lane 1 at 20 m/s: R_f = 20·max(5, 12.5) + 100 = 350 → clamp 170 m.
+    assert front_range(20.0) == 170.0
+    xs = [300, 400, 480, 290, 250, 260, 350]
+    ys = [-5.25, -5.25, -5.25, -5.25, -1.75, -12.25, -8.75]
+    speeds = [20, 20, 20, 10, 20, 20, 20]
+    key = key_vehicles(_snapshot(xs, ys, speeds), 0, chains)
+    # 1: 100 m ahead, same lane; 2: 180 m ahead (> R_f) no; 3: the ego-lane follower 10 m behind (key in the
+    # port); 4: 50 m behind in the left lane, within max(20, 5·20) = 100 m; 5: off every key lane (lane 0 is at
+    # -8.75, this car 3.5 m further right); 6: 50 m ahead in the right lane.
+    assert key.rows.tolist() == [1, 3, 4, 6]
+    assert key.chain.tolist() == [CURRENT, CURRENT, LEFT, RIGHT]
+    np.testing.assert_allclose(key.s, [100.0, -10.0, -50.0, 50.0])
