@@ -62,7 +62,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", RuntimeWarning)
     import ad_rss  # note: this appends site-packages/ad_rss to sys.path (ad_rss's own __init__)
 
-from adrss_oracle import _dynamics
+from adrss_oracle import _dynamics, fill_unstructured
 
 __all__ = [
     "IntersectionStep",
@@ -192,16 +192,7 @@ def _object_state(p: Params, v: SpeedLike, d_enter: float, d_exit: float, prio: 
     s = _C.RelativeObjectState()
     s.object_type = _W.ObjectType.EgoVehicle if ego else _W.ObjectType.OtherVehicle
     s.dynamics = _dynamics(p)
-    un = s.unstructured_object_state  # validated although unused: any finite values do
-    un.yaw = _P.Angle(0.0)
-    un.yaw_rate = _P.AngularVelocity(0.0)
-    un.steering_angle = _P.Angle(0.0)
-    un.dimension.length = _P.Distance(4.5)
-    un.dimension.width = _P.Distance(1.8)
-    un.center_point.x = _P.Distance(0.0)
-    un.center_point.y = _P.Distance(0.0)
-    un.speed_range.minimum = _P.Speed(lo)
-    un.speed_range.maximum = _P.Speed(hi)
+    fill_unstructured(s.unstructured_object_state, lo, hi)  # validated although unused
     st = s.structured_object_state
     st.has_priority = bool(prio)
     st.is_in_correct_lane = True

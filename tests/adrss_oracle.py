@@ -81,6 +81,20 @@ def _dynamics(p: Params) -> object:
     return d
 
 
+def fill_unstructured(un: object, speed_min: float, speed_max: float) -> None:
+    """Fill an ad_rss unstructured object state with finite placeholder values and the given speed range [m/s]
+    (ad_rss validates it even in structured situations; its defaults are NaN)."""
+    un.yaw = _P.Angle(0.0)
+    un.yaw_rate = _P.AngularVelocity(0.0)
+    un.steering_angle = _P.Angle(0.0)
+    un.dimension.length = _P.Distance(4.5)
+    un.dimension.width = _P.Distance(1.8)
+    un.center_point.x = _P.Distance(0.0)
+    un.center_point.y = _P.Distance(0.0)
+    un.speed_range.minimum = _P.Speed(speed_min)
+    un.speed_range.maximum = _P.Speed(speed_max)
+
+
 def _state(p: Params, speed_lon: float, speed_lat: float) -> object:
     """ad_rss ``RelativeObjectState`` of a vehicle with an exact (min = max) speed in ad_rss's frame.
 
@@ -90,16 +104,7 @@ def _state(p: Params, speed_lon: float, speed_lat: float) -> object:
     s.object_type = _WORLD.ObjectType.OtherVehicle
     s.dynamics = _dynamics(p)
     # The unstructured part is validated too (defaults are NaN): any finite values do.
-    un = s.unstructured_object_state
-    un.yaw = _P.Angle(0.0)
-    un.yaw_rate = _P.AngularVelocity(0.0)
-    un.steering_angle = _P.Angle(0.0)
-    un.dimension.length = _P.Distance(4.5)
-    un.dimension.width = _P.Distance(1.8)
-    un.center_point.x = _P.Distance(0.0)
-    un.center_point.y = _P.Distance(0.0)
-    un.speed_range.minimum = _P.Speed(float(speed_lon))
-    un.speed_range.maximum = _P.Speed(float(speed_lon))
+    fill_unstructured(s.unstructured_object_state, float(speed_lon), float(speed_lon))
     st = s.structured_object_state
     # The default 1e9 m fails ad_rss's own input-range check; not used by these formulas.
     st.distance_to_enter_intersection = _P.Distance(0.0)
