@@ -209,7 +209,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_audit(args: argparse.Namespace) -> int:
-    from .batch.runner import write_json
+    from .files import write_json
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.key_vehicles import front_range, key_vehicles

@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pandas as pd
 
-from ..rss.auditor import CSV_FLOAT_FORMAT
+from ..files import write_csv
 from .executors import FAILED_FILE, failure_directory
 from .runner import SUMMARY_FILE, run_directory
 from .spec import Task
@@ -34,7 +33,7 @@ def summary_row(out_dir: Path, task: Task) -> dict:
 def write_batch_outputs(out_dir: Path, tasks: list[Task]) -> pd.DataFrame:
     """batch_summary.csv and the concatenated episodes / violations / collisions / pair_states CSVs."""
     rows = pd.DataFrame([summary_row(out_dir, t) for t in tasks], columns=SUMMARY_COLUMNS)
-    _write_csv(rows, out_dir / "batch_summary.csv")
+    write_csv(rows, out_dir / "batch_summary.csv")
     ok = [t for t, status in zip(tasks, rows.status) if status == "ok"]
     for name in CONCATENATED:
         parts = []
@@ -47,11 +46,6 @@ def write_batch_outputs(out_dir: Path, tasks: list[Task]) -> pd.DataFrame:
                 frame.insert(3, "seed", task.spec.seed)
                 parts.append(frame)
         if parts:
-            _write_csv(pd.concat(parts, ignore_index=True), out_dir / f"{name}.csv")
+            write_csv(pd.concat(parts, ignore_index=True), out_dir / f"{name}.csv")
     return rows
 
-
-def _write_csv(frame: pd.DataFrame, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
-    os.replace(tmp, path)

@@ -21,7 +21,8 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from ..errors import SumoRssError
-from .runner import SUMMARY_FILE, run_directory, run_one, write_json
+from ..files import write_json
+from .runner import SUMMARY_FILE, run_directory, run_one
 from .spec import Task
 
 FAILED_FILE = "failed.json"

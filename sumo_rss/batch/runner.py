@@ -7,7 +7,6 @@ ego's episodes step by step), the resolved ``scenario.toml``, the SUMO inputs/ou
 from __future__ import annotations
 
 import csv
-import json
 import os
 import platform
 import shutil
@@ -21,6 +20,7 @@ import tomli_w
 
 from .. import __version__
 from ..errors import SumoRssError
+from ..files import write_json
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, CollisionInput, ParamResolver
 from ..rss.params import MODEL_VERSION
@@ -155,13 +155,6 @@ def _write_ego_trace(path: Path, rows: list[tuple]) -> None:
         writer.writerow(EGO_TRACE_COLUMNS)
         writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{lat:.6f}")
                          for t, x, y, v, a, lane, lat in rows)
-
-
-def write_json(path: Path, data: object) -> None:
-    """Write ``data`` as JSON atomically (temp file + rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
 
 
 def _replace_dir(src: Path, dst: Path) -> None:

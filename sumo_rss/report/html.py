@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import base64
 import html
-import os
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
+from ..files import write_text
 from .plots import ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import read_batch_csv, responsibility_table, violation_table
 
@@ -41,9 +41,7 @@ def write_report(batch_dir: Path) -> Path:
         images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
     page = _page(batch_dir, summary, responsibility_table(episodes), violation_table(violations), images)
     out = batch_dir / "report.html"
-    tmp = out.with_name(".report.html.tmp")
-    tmp.write_text(page, encoding="utf-8")
-    os.replace(tmp, out)
+    write_text(out, page)
     return out
 
 

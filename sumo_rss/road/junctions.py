@@ -140,13 +140,6 @@ class JunctionModel:
                     ranks[k] = SIGNAL_RANK.get(state[link.tls_index], 0)
         return ranks
 
-    def links_from(self, lane: int) -> list[int]:
-        """Links that start at incoming lane ``lane``."""
-        return [k for k, link in enumerate(self.links) if link.from_lane == lane]
-
-    def conflicts_of(self, link: int) -> list[ConflictArea]:
-        return [c for c in self.conflicts if link in (c.link_a, c.link_b)]
-
 
 def _internal_path(via: int, network: RoadNetwork) -> tuple[int, ...]:
     """The internal lanes of a link: its via lane and the internal lanes chained after it (a left turn's

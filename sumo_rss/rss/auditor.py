@@ -5,7 +5,6 @@ proper response and blame (rss.md §3-§6).
 """
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..files import write_csv
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
@@ -33,7 +33,6 @@ VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "ro
 COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
 PAIR_STATE_COLUMNS = ["run_id", "episode_key", "time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m",
                       "dangerous"]
-CSV_FLOAT_FORMAT = "%.6f"
 
 
 @dataclass(frozen=True)
@@ -95,9 +94,7 @@ class AuditResult:
         if self.pair_states is not None:
             frames.append(("pair_states", self.pair_states))
         for name, frame in frames:
-            tmp = directory / f".{name}.csv.tmp"
-            frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
-            os.replace(tmp, directory / f"{name}.csv")
+            write_csv(frame, directory / f"{name}.csv")
 
 
 class Auditor:
@@ -115,7 +112,6 @@ class Auditor:
         self._traces: list[pd.DataFrame] = []
         self.params = params or ParamResolver()
         self.run_id = run_id
-        self.last_situations: PairSituations | None = None
         self.pair_steps = 0
         self._tracker = ResponsibilityTracker(run_id)
         self._uid: dict[str, int] = {}
@@ -154,7 +150,6 @@ class Auditor:
             self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
         self._prev_ids = set(snapshot.ids.tolist())
-        self.last_situations = situations
         self.pair_steps += len(situations)
         return situations
 

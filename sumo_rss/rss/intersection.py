@@ -144,8 +144,8 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     links = np.concatenate([junctions.lane_link[lane[inside]], cand[r, c]])
     pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + snapshot.lane_pos[inside], -to_end[r]])
     i, j = np.triu_indices(len(rows), 1)
-    i, j = i[junctions.area_index[links[i], links[j]] >= 0], j[junctions.area_index[links[i], links[j]] >= 0]
-    i, j = i[rows[i] != rows[j]], j[rows[i] != rows[j]]
+    share = (junctions.area_index[links[i], links[j]] >= 0) & (rows[i] != rows[j])
+    i, j = i[share], j[share]
     # Name each situation by id order: a < b.
     swap = snapshot.ids[rows[i]] > snapshot.ids[rows[j]]
     ea, eb = np.where(swap, j, i), np.where(swap, i, j)

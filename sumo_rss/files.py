@@ -1,0 +1,28 @@
+"""Atomic writes (temp file in the same folder + rename): a reader sees the old file or the whole new one."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pandas as pd
+
+CSV_FLOAT_FORMAT = "%.6f"  # every CSV the project writes: 6 decimals, so the same run gives the same bytes
+
+
+def write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def write_json(path: Path, data: object) -> None:
+    """``data`` as indented JSON with sorted keys."""
+    write_text(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
+
+
+def write_csv(frame: pd.DataFrame, path: Path) -> None:
+    """``frame`` without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+    os.replace(tmp, path)
