@@ -23,7 +23,7 @@ LANE_CHANGE_MODELS = ("LC2013",)
 VEHICLE_CLASSES = ("passenger", "truck", "trailer", "bus", "coach", "delivery", "motorcycle", "emergency")
 DEPART_LANES = ("best", "random", "free", "allowed", "first")
 DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
-CONTROLLERS = ("sumo", "epsilon")
+CONTROLLERS = ("sumo", "epsilon", "mpdm")
 
 
 def networks_root() -> Path:

@@ -7,6 +7,7 @@ import numpy as np
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.key_vehicles import front_range, key_vehicles
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
+from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.sim.snapshot import WorldSnapshot
 
@@ -57,7 +58,7 @@ def test_key_vehicles_by_lane_and_range():
     xs = [300, 400, 480, 290, 250, 260, 350]
     ys = [-5.25, -5.25, -5.25, -5.25, -1.75, -12.25, -8.75]
     speeds = [20, 20, 20, 10, 20, 20, 20]
-    key = key_vehicles(_snapshot(xs, ys, speeds), 0, chains)
+    key = key_vehicles(_snapshot(xs, ys, speeds), 0, RoadFrame.build(chains))
     # 1: 100 m ahead, same lane; 2: 180 m ahead (> R_f) no; 3: the ego-lane follower 10 m behind (key in the
     # port); 4: 50 m behind in the left lane, within max(20, 5·20) = 100 m; 5: off every key lane (lane 0 is at
     # -8.75, this car 3.5 m further right); 6: 50 m ahead in the right lane.

@@ -19,7 +19,6 @@ from pathlib import Path
 import tomli_w
 
 from .. import __version__
-from ..errors import SumoRssError
 from ..files import write_json
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, CollisionInput, ParamResolver
@@ -30,6 +29,7 @@ from ..sim.snapshot import EGO_CLASS
 from .spec import Task
 
 SUMMARY_FILE = "summary.json"
+PLANNER_FILE = "planner.json"
 MANIFEST_FILE = "manifest.json"
 EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lat_pos_m")
 
@@ -60,6 +60,7 @@ class RunSummary:
     ego_controller: str | None
     collision_events: list[dict] = field(default_factory=list)
     versions: dict[str, str] = field(default_factory=dict)
+    planner: dict | None = None  # planner runs: cycle times, backups, lane changes, guard interventions
 
 
 def param_resolver(spec: ScenarioSpec) -> ParamResolver:
@@ -91,9 +92,6 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     """
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
 
-    if spec.ego is not None and spec.ego.controller != "sumo":
-        raise SumoRssError(f"{spec.source}: ego.controller: {spec.ego.controller!r} needs the EPSILON planner, "
-                           "which this version does not include yet; use controller = \"sumo\"")
     task = Task(spec, variant)
     final = run_directory(out_dir, task)
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -105,8 +103,10 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                                           "seed": spec.seed, "parameter_hash": task.parameter_hash(),
                                           "versions": run_versions})
         started = time.perf_counter()
-        auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), task.run_id,
-                          trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
+        network = RoadNetwork.from_file(spec.net_file)
+        resolver = param_resolver(spec)
+        auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
+        driver = _ego_driver(spec, network, resolver)
         ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
@@ -118,6 +118,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                     k = snapshot.index_of(session.ego_id)
                     ego_rows.append((snapshot.time, snapshot.x[k], snapshot.y[k], snapshot.speed[k],
                                      snapshot.accel[k], snapshot.lane_id[k], snapshot.lat_pos[k]))
+                    if driver is not None and not session.finished:
+                        session.place_ego(driver.command(snapshot, auditor))
                 if on_step is not None:
                     on_step(session.steps * spec.step_s)
         audit = auditor.finish()
@@ -125,6 +127,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         simulated = session.steps * spec.step_s
         audit.to_csv(work)
         write_json(work / "rss_params.json", audit.params)
+        if driver is not None:
+            write_json(work / PLANNER_FILE, driver.summary())
         _write_ego_trace(work / "ego_trace.csv", ego_rows)
         episodes = audit.episodes
         ego_blamed = ((episodes.class_a == EGO_CLASS) & episodes.responsible.isin(["a", "both"])) | \
@@ -140,13 +144,26 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             ego_responsible_episodes=int(ego_blamed.sum()),
             ego_mean_speed_ms=float(sum(r[3] for r in ego_rows) / len(ego_rows)) if ego_rows else None,
             ego_id=session.ego_id, ego_controller=spec.ego.controller if spec.ego else None,
-            collision_events=[asdict(c) for c in session.collisions], versions=run_versions)
+            collision_events=[asdict(c) for c in session.collisions], versions=run_versions,
+            planner=driver.summary() if driver is not None else None)
         write_json(work / SUMMARY_FILE, asdict(summary))
         _replace_dir(work, final)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
     return summary
+
+
+def _ego_driver(spec: ScenarioSpec, network: RoadNetwork, resolver: ParamResolver):
+    """The planner driving the ego (None when SUMO drives it). The planner judges RSS with the scenario's
+    parameters unless ``[ego.planner] rss_preset`` names another preset; the guard always uses the auditor's."""
+    if spec.ego is None or spec.ego.controller == "sumo":
+        return None
+    from ..planner.driver import EgoDriver
+
+    preset = spec.ego.planner.rss_preset
+    planner_params = resolver if preset is None else ParamResolver(preset, {}, {}, resolver.vtype_dynamics)
+    return EgoDriver(spec, network, resolver, planner_params)
 
 
 def _write_ego_trace(path: Path, rows: list[tuple]) -> None:

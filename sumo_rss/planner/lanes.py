@@ -19,7 +19,10 @@ class LaneChains:
 
     ``shapes`` holds the chains that exist, ``chain_of[RIGHT|CURRENT|LEFT]`` their row in it (-1 if absent),
     ``lanes[c]`` the lane indices of chain c, ``start_s[c]`` where the ego's own lane starts along chain c [m],
-    ``speed_limit[c]`` the lowest limit along it [m/s].
+    ``speed_limit[c]`` the lowest limit along it [m/s], ``dead_end[c]`` whether chain c's last lane ends for good
+    (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
+    A neighbour chain starts beside the first lane along the ego's chain that has such a neighbour, so the
+    motorway beside an on-ramp is known before the ego reaches it.
     """
 
     shapes: LaneShapes
@@ -27,6 +30,7 @@ class LaneChains:
     lanes: tuple[tuple[int, ...], ...]
     start_s: np.ndarray
     speed_limit: np.ndarray
+    dead_end: np.ndarray
 
     def exists(self, which: int) -> bool:
         return bool(self.chain_of[which] >= 0)
@@ -51,7 +55,7 @@ class LaneChains:
 
 
 def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: float = 250.0,
-                backward: float = 50.0) -> LaneChains:
+                backward: float = 160.0) -> LaneChains:
     """Chains through the ego's lane and its neighbours, ``forward`` m ahead along the route (any successor where
     the route says nothing) and ``backward`` m behind."""
     predecessors: dict[int, list[int]] = {}
@@ -59,28 +63,35 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         for j in succ:
             predecessors.setdefault(j, []).append(k)
     route_set = set(int(e) for e in route if e >= 0)
-    starts = [int(network.lane_right[lane]), lane, int(network.lane_left[lane])]
-    chains, chain_of, start_s, limits, polylines = [], np.full(3, -1), [], [], []
+    own_ahead = _walk(network, lane, network.lane_successors, route_set, forward, own=True)
+    starts = [_first_neighbour(network.lane_right, own_ahead), lane, _first_neighbour(network.lane_left, own_ahead)]
+    chains, chain_of, start_s, limits, polylines, dead_end = [], np.full(3, -1), [], [], [], []
     for which, first in enumerate(starts):
         if first < 0:
             continue
-        ahead = _walk(network, first, network.lane_successors, route_set, forward, own=True)
+        ahead = own_ahead if which == CURRENT else \
+            _walk(network, first, network.lane_successors, route_set, forward, own=True)
         behind = _walk(network, first, predecessors, route_set, backward, own=False)[::-1]
         chain = tuple(behind + ahead)
         pts: list[np.ndarray] = []
-        offset = 0.0
         for k in chain:
             shape = network.shapes.points[k, : network.shapes.count[k]]
-            if k == first:
-                offset = float(sum(network.shapes.cumulative[j, network.shapes.count[j] - 1] for j in behind))
             pts.extend(shape if not pts else shape[1:])
+        # s is measured from the start of the ego's own lane: project it onto this chain.
+        offset = float(sum(network.shapes.cumulative[j, network.shapes.count[j] - 1] for j in behind))
         chain_of[which] = len(chains)
         chains.append(chain)
         start_s.append(offset)
         limits.append(float(network.lane_speed[list(chain)].min()))
         polylines.append(np.asarray(pts, dtype=float))
+        dead_end.append(len(network.lane_successors[chain[-1]]) == 0)
     return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
-                      np.array(limits))
+                      np.array(limits), np.array(dead_end, dtype=bool))
+
+
+def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:
+    """The neighbour (left or right) of the first lane in ``lanes`` that has one, else -1."""
+    return next((int(neighbour[k]) for k in lanes if neighbour[k] >= 0), -1)
 
 
 def _walk(network: RoadNetwork, lane: int, graph: object, route: set[int], length: float, *,

@@ -17,7 +17,7 @@ from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
-from .responsibility import ResponsibilityTracker, StepInput
+from .responsibility import OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
@@ -152,6 +152,10 @@ class Auditor:
         self._prev_ids = set(snapshot.ids.tolist())
         self.pair_steps += len(situations)
         return situations
+
+    def owed_by(self, vehicle_id: str) -> OwedResponses:
+        """The proper responses ``vehicle_id`` owes right now (open episodes after the last observed step)."""
+        return self._tracker.owed_by(vehicle_id)
 
     def _trace(self, time: float, keys: np.ndarray, situations: PairSituations) -> None:
         traced, episode_keys = self._tracker.open_episodes(self.trace_class)

@@ -92,6 +92,22 @@ class _Episodes:
         return int(self.keys.shape[0])
 
 
+@dataclass(frozen=True, eq=False)
+class OwedResponses:
+    """What one vehicle owes in its open episodes (one row per episode), for a proper-response guard."""
+
+    t_b: np.ndarray  # [s] danger threshold time
+    must_brake: np.ndarray  # bool: longitudinal braking owed after ρ
+    brake_correct: np.ndarray  # bool: the braking owed is b_corr (opposite direction, correct lane)
+    front_limited: np.ndarray  # bool: must not brake harder than b_max
+    owed_lat: np.ndarray  # bool: lateral response owed
+    other_is_left: np.ndarray  # bool: the other car is on this car's left
+    u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
+
+    def __len__(self) -> int:
+        return int(self.t_b.shape[0])
+
+
 class ResponsibilityTracker:
     """Rolls the per-pair state forward one step at a time and collects closed episodes and violations."""
 
@@ -141,6 +157,17 @@ class ResponsibilityTracker:
         e = self._open
         idx = np.flatnonzero((e.a_class == vclass) | (e.b_class == vclass))
         return e.keys[idx], [self._episode_key(int(i)) for i in idx]
+
+    def owed_by(self, vehicle_id: str) -> OwedResponses:
+        """The responses ``vehicle_id`` owes in its open episodes."""
+        e = self._open
+        as_a, as_b = e.a_id == vehicle_id, e.b_id == vehicle_id
+        idx = np.flatnonzero(as_a | as_b)
+        car = np.where(as_a[idx], 0, 1)
+        return OwedResponses(
+            t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx],
+            front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
+            other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car])
 
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""

@@ -17,7 +17,7 @@ from libsumo import constants as tc
 
 from ..errors import SessionError
 from ..scenario import ScenarioSpec
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, TrajectoryState
 from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
 from .demand import write_route_file
@@ -91,6 +91,9 @@ class Session:
         self._static: dict[str, _Static] = {}
         self._contacts = ContactTracker()
         self._ego_controlled = False
+        self._lane_offsets: dict[str, float] = {}
+        self._ego_lateral: tuple[str, float, float] | None = None  # (edge, lateral position, speed) last step
+        self._ego_speed: float | None = None  # [m/s] at the last step
         self._step_ms = round(spec.step_s * 1000)
         self._signals: tuple[str, ...] = ()
         self._tmp: str | None = None
@@ -205,10 +208,18 @@ class Session:
             return np.round(values, FCD_PRECISION) if dtype is float else values
 
         xy = np.round(np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2), FCD_PRECISION)
+        lat_speed, accel, speed = col(tc.VAR_SPEED_LAT), col(tc.VAR_ACCELERATION), col(tc.VAR_SPEED)
+        if self._ego_controlled and self.ego_id in ids:
+            # SUMO reports neither for a vehicle placed by moveToXY: derive them from the placed states.
+            k = ids.index(self.ego_id)
+            lat_speed[k] = self._ego_lateral_speed(rows[k])
+            previous = self._ego_speed if self._ego_speed is not None else speed[k]
+            accel[k] = round((speed[k] - previous) / self.spec.step_s, FCD_PRECISION)
+        if self.ego_id in ids:
+            self._ego_speed = speed[ids.index(self.ego_id)]
         return WorldSnapshot(
             time=time, ids=np.array(ids, dtype=str), x=xy[:, 0], y=xy[:, 1],
-            heading=compass_deg_to_heading(col(tc.VAR_ANGLE)), speed=col(tc.VAR_SPEED),
-            accel=col(tc.VAR_ACCELERATION), lat_speed=col(tc.VAR_SPEED_LAT),
+            heading=compass_deg_to_heading(col(tc.VAR_ANGLE)), speed=speed, accel=accel, lat_speed=lat_speed,
             length=np.fromiter((s.length for s in static), float, n),
             width=np.fromiter((s.width for s in static), float, n),
             lane_id=np.array([r[tc.VAR_LANE_ID] for r in rows], dtype=str),
@@ -221,6 +232,23 @@ class Session:
             route_edges=tuple(s.route for s in static),
             tls_states={tl: libsumo.trafficlight.getRedYellowGreenState(tl) for tl in self._signals} or None)
 
+    def _ego_lateral_speed(self, row: dict) -> float:
+        """Lateral speed [m/s] (+ = left) of the ego while it is placed by moveToXY, for which SUMO reports 0:
+        the change of its lateral position across its edge (lane offset + posLat) over the step; carried over
+        the step on which it enters a new edge."""
+        lane, edge = row[tc.VAR_LANE_ID], row[tc.VAR_ROAD_ID]
+        offset = self._lane_offsets.get(lane)
+        if offset is None:
+            widths = [libsumo.lane.getWidth(f"{edge}_{k}") for k in range(libsumo.edge.getLaneNumber(edge))]
+            index = row[tc.VAR_LANE_INDEX]
+            offset = self._lane_offsets[lane] = sum(widths[:index]) + 0.5 * widths[index]
+        edge_lat = offset + row[tc.VAR_LANEPOSITION_LAT]
+        previous = self._ego_lateral
+        speed = (edge_lat - previous[1]) / self.spec.step_s if previous and previous[0] == edge else \
+            (previous[2] if previous else 0.0)
+        self._ego_lateral = (edge, edge_lat, speed)
+        return round(speed, FCD_PRECISION)
+
     # -- ego -------------------------------------------------------------------------------------------------
     @property
     def ego_on_road(self) -> bool:
@@ -232,6 +260,10 @@ class Session:
         The first call hands the ego over from SUMO (speed mode 32, lane-change mode 0); from then on it goes
         exactly where the trajectory puts it and background traffic reacts to it.
         """
+        self.place_ego(trajectory.state_at(self.time + self.spec.step_s))
+
+    def place_ego(self, state: TrajectoryState) -> None:
+        """Place the ego at ``state`` at the end of the coming step (see :meth:`drive_ego`)."""
         if self.ego_id is None:
             raise SessionError(f"scenario {self.spec.source} has no [ego]")
         if not self.ego_on_road:
@@ -239,4 +271,4 @@ class Session:
         if not self._ego_controlled:
             ego_actuation.take_control(self.ego_id)
             self._ego_controlled = True
-        ego_actuation.place(self.ego_id, trajectory.state_at(self.time + self.spec.step_s))
+        ego_actuation.place(self.ego_id, state)

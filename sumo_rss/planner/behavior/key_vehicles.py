@@ -7,9 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...sim.snapshot import WorldSnapshot
-from ..lanes import CURRENT, LaneChains
+from ..road_frame import RoadFrame
 
 MAX_LANE_OFFSET = 2.0  # [m] farther from every key lane's centre line, a vehicle is on none of them
+SEARCH_RADIUS = 200.0  # [m] Euclidean pre-filter around the ego (R_f ≤ 170 m, rear range ≤ 5·v)
 
 
 def front_range(v_ego: float) -> float:
@@ -19,30 +20,37 @@ def front_range(v_ego: float) -> float:
 
 @dataclass(frozen=True, eq=False)
 class KeyVehicles:
+    """Key vehicles in the planning frame; positions are of the vehicles' geometric centres."""
+
     rows: np.ndarray  # snapshot rows of the key vehicles
     chain: np.ndarray  # RIGHT / CURRENT / LEFT chain each is on
-    s: np.ndarray  # centre position along that chain, relative to the ego's [m]
-    d: np.ndarray  # offset from the chain's centre line [m], + = left
+    s: np.ndarray  # centre position along the frame, relative to the ego's centre [m]
+    d: np.ndarray  # offset from its own chain's centre line [m], + = left
+    frame_s: np.ndarray  # absolute frame s [m]
+    frame_d: np.ndarray  # frame d [m]
+    heading: np.ndarray  # heading relative to the frame's centre line [rad]
 
 
-def key_vehicles(snapshot: WorldSnapshot, ego_row: int, chains: LaneChains) -> KeyVehicles:
+def centres(snapshot: WorldSnapshot) -> tuple[np.ndarray, np.ndarray]:
+    """Geometric centres (x, y) [m] of all vehicles (SUMO reports the front bumper)."""
+    return (snapshot.x - 0.5 * snapshot.length * np.cos(snapshot.heading),
+            snapshot.y - 0.5 * snapshot.length * np.sin(snapshot.heading))
+
+
+def key_vehicles(snapshot: WorldSnapshot, ego_row: int, frame: RoadFrame) -> KeyVehicles:
     """Vehicles on a key lane within R_f ahead of the ego or max(20, 5·|v|) behind it."""
-    cx = snapshot.x - 0.5 * snapshot.length * np.cos(snapshot.heading)
-    cy = snapshot.y - 0.5 * snapshot.length * np.sin(snapshot.heading)
-    n = len(snapshot)
-    s_all = np.full((3, n), np.nan)
-    d_all = np.full((3, n), np.inf)
-    for which in range(3):
-        if chains.exists(which):
-            s_all[which], d_all[which] = chains.project(which, cx, cy)
-    chain = np.argmin(np.abs(d_all), axis=0)
-    cols = np.arange(n)
-    s, d = s_all[chain, cols], d_all[chain, cols]
-    ego_s, _ = chains.project(CURRENT, cx[ego_row:ego_row + 1], cy[ego_row:ego_row + 1])
-    dist = s - ego_s[0]
-    on_lane = np.abs(d) <= MAX_LANE_OFFSET
+    cx, cy = centres(snapshot)
+    near = np.flatnonzero(np.hypot(cx - cx[ego_row], cy - cy[ego_row]) <= SEARCH_RADIUS)
+    s, d, rel = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
+    chain = frame.nearest_chain(s, d)
+    d_own = d - frame.centre_d(chain, s)
+    ego = int(np.flatnonzero(near == ego_row)[0])
+    dist = s - s[ego]
+    speed = snapshot.speed[near]
+    on_lane = np.abs(d_own) <= MAX_LANE_OFFSET
     ahead = (dist >= 0.0) & (dist < front_range(float(snapshot.speed[ego_row])))
-    behind = (dist < 0.0) & (-dist < np.maximum(20.0, 5.0 * np.abs(snapshot.speed)))
-    key = on_lane & (ahead | behind) & (cols != ego_row)
-    rows = np.flatnonzero(key)
-    return KeyVehicles(rows, chain[rows], dist[rows], d[rows])
+    behind = (dist < 0.0) & (-dist < np.maximum(20.0, 5.0 * np.abs(speed)))
+    key = on_lane & (ahead | behind) & (near != ego_row)
+    idx = np.flatnonzero(key)
+    order = idx[np.argsort(near[idx], kind="stable")]
+    return KeyVehicles(near[order], chain[order], dist[order], d_own[order], s[order], d[order], rel[order])

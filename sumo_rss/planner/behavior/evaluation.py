@@ -1,0 +1,158 @@
+"""Policy evaluation of EUDM (epsilon.md §4): per-layer costs, discount, scenario weighting.
+
+Per layer i (end-of-layer ego state, except RSS which sums over the layer's samples):
+efficiency (c_ego), leader (c_lead), RSS safe-velocity penalty (c_rss), forbidden lane (c_occ),
+navigation/user (c_nav); C_i = t_i·γ^i·[(c_ego + c_lead)/2 + (c_rss + c_occ)/2 + c_nav]. A policy's cost is the
+scenario-weighted sum over its rollouts; a policy that collides in any of its scenarios is invalid.
+Units: m, s, m/s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...rss import formulas
+from ..road_frame import RoadFrame
+from .dcp_tree import Lat, Policy
+from .forward_sim import LEADER_RANGE, SimResult
+
+
+@dataclass(frozen=True)
+class CostWeights:
+    """epsilon.md §9 defaults."""
+
+    lack_speed: float = 0.3
+    over_speed: float = 0.03
+    over_speed_tolerance: float = 1.0  # [m/s]
+    leader_min_ratio: float = 0.4
+    blocked_by_leader: float = 0.02
+    leader_below_desired: float = 0.1
+    rss_over_coeff: float = 0.5
+    rss_over_power: float = 0.25
+    rss_lack_coeff: float = 0.6
+    rss_lack_power: float = 0.35
+    rss_max_excess: float = 20.0  # [m/s] cap on |v - v_bound| in the exponent (keeps the penalty finite)
+    occupied_lane: float = 0.10
+    late_operation: float = 0.25
+    cancel: float = 8.0
+    lane_change_left: float = 0.015
+    lane_change_right: float = 0.06
+    recommended_reward: float = 1.0
+    nav_speed_floor: float = 10.0  # [m/s] u = max(10, v)
+    discount: float = 0.7
+
+
+@dataclass(frozen=True)
+class Navigation:
+    """Lane-change wishes for the cost: the direction the manager recommends now (None: none), user forbids."""
+
+    recommended: Lat | None = None
+    forbid_left: bool = False
+    forbid_right: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """Per policy: total cost, validity, whether RSS was violated, and the cost per layer."""
+
+    cost: np.ndarray  # [P]
+    valid: np.ndarray  # [P] bool
+    risky: np.ndarray  # [P] bool
+    layer_cost: np.ndarray  # [P, layers] scenario-weighted
+
+
+def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any, length: np.ndarray,
+                width: np.ndarray, w: CostWeights) -> np.ndarray:
+    """RSS safe-velocity penalty per rollout and sample [R, T+1], summed over agents (epsilon.md §4.1.3).
+    Lateral speeds are taken relative to each car's own lane (as the auditor does), so lanes that converge in
+    the frame (a ramp and the motorway) do not read as cars driving at each other."""
+    s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
+    ds = s[..., 1:] - s[..., :1]
+    v_lat = v * np.sin(h - frame.slope(frame.nearest_chain(s, d), s))
+    ego_left = d[..., :1] >= d[..., 1:]
+    lat_gap = np.abs(d[..., 1:] - d[..., :1]) - 0.5 * (width[0] + width[1:])
+    v_left = np.where(ego_left, v_lat[..., :1], v_lat[..., 1:])
+    v_right = np.where(ego_left, v_lat[..., 1:], v_lat[..., :1])
+    lat_min = formulas.lat_safe_distance(v_left, v_right, _pick(ego_left, rss_ego, rss_agents),
+                                         _pick(~ego_left, rss_ego, rss_agents))
+    lat_unsafe = ~formulas.is_safe_distance(lat_gap, lat_min)
+    gap = np.abs(ds) - 0.5 * (length[0] + length[1:])
+    v_e, v_o = v[..., :1], v[..., 1:]
+    front = ds >= 0.0
+    v_up = formulas.max_safe_speed_behind(np.maximum(gap, 0.0), v_o, rss_ego, rss_agents)
+    v_up = np.where(gap < 0.0, 0.0, np.maximum(v_up, 0.0))
+    v_low = formulas.min_safe_speed_ahead(gap, v_o, rss_ego, rss_agents)
+    too_fast = lat_unsafe & front & (v_e > v_up + 1e-6)
+    # A rear car already beside-or-behind the ego in its lane at the start is that car's duty (the ego, in
+    # front, owes nothing); the ego is charged for the rear cars it moves in front of.
+    too_slow = lat_unsafe & ~lat_unsafe[:, :1] & ~front & (v_e < v_low - 1e-6)
+    fast = w.rss_over_coeff * v_e * 10.0 ** (w.rss_over_power * np.minimum(np.abs(v_e - v_up), w.rss_max_excess))
+    slow = w.rss_lack_coeff * v_e * 10.0 ** (w.rss_lack_power * np.minimum(np.abs(v_e - v_low), w.rss_max_excess))
+    return np.where(too_fast, fast, 0.0).sum(axis=-1) + np.where(too_slow, slow, 0.0).sum(axis=-1)
+
+
+def _pick(ego_side: np.ndarray, rss_ego: Any, rss_agents: Any) -> Any:
+    """Parameters of the car on one side: the ego's where ``ego_side``, else the agent's (as arrays)."""
+    return type(rss_agents)(**{name: np.where(ego_side, getattr(rss_ego, name), getattr(rss_agents, name))
+                               for name in rss_agents.__dataclass_fields__})
+
+
+def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,
+             v_ref: float, nav: Navigation, rss_ego: Any, rss_agents: Any, length: np.ndarray,
+             width: np.ndarray, w: CostWeights = CostWeights()) -> Evaluation:
+    """Costs of ``policies`` from the rollouts in ``sim``; rollout r plays policy ``policy_of[r]`` with scenario
+    weight ``weight_of[r]``. ``rss_agents`` covers the agents only (columns 1..n)."""
+    ends = sim.layer_end
+    starts = np.concatenate([[0], ends[:-1]])
+    durations = sim.t[ends] - sim.t[starts]
+    v = sim.speed[:, ends, 0]  # [R, layers]
+    c_ego = np.where(v < v_ref, w.lack_speed * (v_ref - v),
+                     np.where(v > v_ref + w.over_speed_tolerance, w.over_speed * (v - v_ref - w.over_speed_tolerance),
+                              0.0))
+    gap, v_lead = sim.ego_lead_gap[:, ends], sim.ego_lead_speed[:, ends]
+    residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
+    blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
+    c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
+                      (w.blocked_by_leader * np.maximum(v - v_lead, 0.0) + w.leader_below_desired * (v_ref - v_lead)),
+                      0.0)
+    per_sample = rss_penalty(sim, frame, rss_ego, rss_agents, length, width, w)  # [R, T+1]
+    sample_layer = np.searchsorted(ends, np.arange(sim.t.size), side="left")  # sample k ∈ layer (k ≤ end)
+    c_rss = np.zeros_like(v)
+    for i in range(len(ends)):
+        c_rss[:, i] = per_sample[:, (sample_layer == i) & (np.arange(sim.t.size) > 0)].sum(axis=1)
+    c_occ, c_nav = _lane_costs(policies, policy_of, v, nav, w)
+    discount = durations * w.discount ** np.arange(len(ends))
+    layer = discount * (0.5 * (c_ego + c_lead) + 0.5 * (c_rss + c_occ) + c_nav)  # [R, layers]
+    P = len(policies)
+    layer_cost = np.zeros((P, len(ends)))
+    np.add.at(layer_cost, policy_of, weight_of[:, None] * layer)
+    valid = np.ones(P, dtype=bool)
+    np.logical_and.at(valid, policy_of, sim.valid)
+    risky = np.zeros(P, dtype=bool)
+    np.logical_or.at(risky, policy_of, per_sample.sum(axis=1) > 0.0)
+    return Evaluation(layer_cost.sum(axis=1), valid, risky, layer_cost)
+
+
+def _lane_costs(policies: list[Policy], policy_of: np.ndarray, v: np.ndarray, nav: Navigation,
+                w: CostWeights) -> tuple[np.ndarray, np.ndarray]:
+    """Forbidden-lane and navigation/user costs per rollout and layer."""
+    u = np.maximum(w.nav_speed_floor, v)
+    n_layers = v.shape[1]
+    occ_rate = np.zeros((len(policies), 1))
+    nav_rate = np.zeros((len(policies), n_layers))
+    for p, policy in enumerate(policies):
+        lateral = policy.lateral
+        forbidden = (lateral is Lat.LEFT and nav.forbid_left) or (lateral is Lat.RIGHT and nav.forbid_right)
+        occ_rate[p] = w.occupied_lane if forbidden else 0.0
+        if lateral is Lat.KEEP:
+            continue
+        if policy.is_cancel:
+            nav_rate[p] = w.cancel
+        elif nav.recommended is lateral:
+            late = np.array([lat is not lateral for lat in policy.lats[:n_layers]], dtype=float)
+            nav_rate[p] = -w.recommended_reward + w.late_operation * late
+        else:
+            nav_rate[p] = w.lane_change_left if lateral is Lat.LEFT else w.lane_change_right
+    return occ_rate[policy_of] * v, nav_rate[policy_of] * u

@@ -1,0 +1,306 @@
+"""Closed-loop multi-agent forward simulation of EUDM (epsilon.md §3), vectorised over rollouts and vehicles.
+
+Every (policy x scenario) rollout of a planning cycle is one row of [rollouts, vehicles] arrays (column 0 is the
+ego) advanced together in synchronous (Jacobi) steps: each step computes every vehicle's command from the
+states at the start of the step, then commits them all. Vehicles live in the planning frame (:class:`RoadFrame`):
+s along the ego's lane chain, d across it, heading relative to it; lanes are offset profiles, so nothing is
+projected inside the loop. The reference point is the geometric centre (SUMO gives no axle geometry).
+
+Per step and vehicle: pure pursuit on the tracked lane (its target lane; the ego's lane per layer of its policy),
+a leader search on the tracked lane and on the lane the vehicle is in now, ACC/IIDM on the nearer leader (a lane
+that ends is a stopped leader at its end), the kinematic bicycle with its limits. The ego's lane-change layers
+use the gap-informed controller of §3.5 with the port's fix (the current-lane IDM still applies), the RSS
+evasive speed-up and an RSS virtual barrier (no lateral progress while the gap is not RSS-safe). A rollout whose
+ego box (inflated) meets another vehicle's box is invalid from that step on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ...rss import formulas
+from ..road_frame import RoadFrame
+from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, idm_speed_command, lookahead, \
+    pure_pursuit_steer
+
+NO_LEADER_GAP = 100.0  # [m] a free road is a virtual leader 100 + 100·v ahead at the own speed
+LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Controller settings of the forward simulation (epsilon.md §3.1, §3.5, §3.6)."""
+
+    ego_idm: IdmParams = IdmParams()
+    agent_idm: IdmParams = IdmParams(s0=1.0, headway=0.5, accel=2.0, comfort_brake=1.67, hard_brake=4.0)
+    ego_limits: VehicleLimits = VehicleLimits()
+    agent_limits: VehicleLimits = VehicleLimits(max_accel=2.0, hard_brake=4.0, accel_jerk=5.0, brake_jerk=4.0,
+                                                lat_accel=1.5, lat_jerk=3.0)
+    ego_pursuit: tuple[float, float, float] = (2.5, 3.0, 100.0)  # gain [s], min, max look-ahead [m]
+    agent_pursuit: tuple[float, float, float] = (1.5, 3.0, 50.0)
+    ego_radius: float = 2.2  # [m] lateral search radius around a lane's centre line
+    agent_radius: float = 1.25
+    gap_speed_gain: float = 0.1  # K_v [1/s] of the gap target speed, clipped to [-3, 5] m/s
+    track_pos_gain: float = 0.4  # K_s [1/s]
+    track_speed_gain: float = 0.8  # K_v' [1/s], tracking acceleration clipped to ±1 m/s²
+    preferred_blend: float = 0.1
+    evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe
+    inflation: float = 0.1  # [m] added to length and width in the strict collision check
+    lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
+
+
+@dataclass(frozen=True, eq=False)
+class Vehicles:
+    """Initial states in the planning frame; column 0 is the ego. Arrays of shape [n]."""
+
+    s: np.ndarray
+    d: np.ndarray
+    heading: np.ndarray  # relative to the frame's centre line [rad]
+    speed: np.ndarray
+    accel: np.ndarray
+    curvature: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+    chain: np.ndarray  # lane chain each vehicle is on (RIGHT/CURRENT/LEFT)
+
+    def __len__(self) -> int:
+        return int(self.s.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Rollouts:
+    """What differs between rollouts. ``ego_chain[r, layer]``: the lane the ego tracks in each layer;
+    ``ego_v0[r]`` its desired speed, ``ego_spacing_scale[r]`` the factor on its s0 and T (0.75 when
+    accelerating); ``ego_backup[r]``: the emergency backup (lane keep, braking at ``backup_brake``);
+    ``agent_chain[r, i]`` each agent's target lane, ``agent_v0[i]`` its desired speed."""
+
+    ego_chain: np.ndarray  # [R, layers] int
+    ego_v0: np.ndarray  # [R]
+    ego_spacing_scale: np.ndarray  # [R]
+    ego_backup: np.ndarray  # [R] bool
+    backup_brake: float
+    agent_chain: np.ndarray  # [R, n] int (column 0 unused)
+    agent_v0: np.ndarray  # [n]
+
+
+@dataclass(frozen=True, eq=False)
+class SimResult:
+    """Trajectories at the sample times ``t`` (relative to now, t[0] = 0): arrays [R, T+1, n]."""
+
+    t: np.ndarray  # [T+1]
+    layer_end: np.ndarray  # [layers] sample index that ends each layer
+    s: np.ndarray
+    d: np.ndarray
+    heading: np.ndarray
+    speed: np.ndarray
+    accel: np.ndarray
+    curvature: np.ndarray
+    valid: np.ndarray  # [R] no collision of the ego with anyone
+    ego_lead_gap: np.ndarray  # [R, T+1] ego's leader on its tracked lane: bumper gap [m] (inf: none)
+    ego_lead_speed: np.ndarray  # [R, T+1]
+    barrier_steps: np.ndarray  # [R] steps the virtual barrier held the ego back
+
+
+def step_times(durations: tuple[float, ...], sim_step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sample times [s] (from 0) and the sample index ending each layer; each layer is cut into equal steps of
+    at most ``sim_step``."""
+    times, ends, t = [0.0], [], 0.0
+    for duration in durations:
+        n = max(1, int(np.ceil(duration / sim_step - 1e-9)))
+        for _ in range(n):
+            t += duration / n
+            times.append(t)
+        ends.append(len(times) - 1)
+    return np.array(times), np.array(ends)
+
+
+def _per_vehicle(ego: Any, agent: Any, n: int) -> Any:
+    """A parameter dataclass whose fields are [n] arrays: the ego's values in column 0, the agents' after."""
+    values = {}
+    for name in ego.__dataclass_fields__:
+        column = np.full(n, float(getattr(agent, name)))
+        column[0] = float(getattr(ego, name))
+        values[name] = column
+    return type(ego)(**values)
+
+
+def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any, bh: Any, bl: Any,
+                  bw: Any) -> np.ndarray:
+    """Whether oriented boxes (centre, heading, length, width) overlap: separating-axis test, broadcast."""
+    dx, dy = np.asarray(bx) - ax, np.asarray(by) - ay
+    separated = np.zeros(np.broadcast(dx, dy, ah, bh).shape, dtype=bool)
+    for phi in (ah, np.asarray(ah) + np.pi / 2, bh, np.asarray(bh) + np.pi / 2):
+        c, s = np.cos(phi), np.sin(phi)
+        dist = np.abs(dx * c + dy * s)
+        ra = 0.5 * al * np.abs(np.cos(ah - phi)) + 0.5 * aw * np.abs(np.sin(ah - phi))
+        rb = 0.5 * bl * np.abs(np.cos(bh - phi)) + 0.5 * bw * np.abs(np.sin(bh - phi))
+        separated |= dist > ra + rb
+    return ~separated
+
+
+def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
+             settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2) -> SimResult:
+    """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
+    RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier."""
+    t, layer_end = step_times(durations, sim_step)
+    n_steps, n = t.size - 1, len(vehicles)
+    R = rollouts.ego_v0.shape[0]
+    cols = np.arange(n)
+    idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
+    scale = np.ones((R, n))
+    scale[:, 0] = rollouts.ego_spacing_scale
+    idm = replace(idm, s0=idm.s0[None, :] * scale, headway=idm.headway[None, :] * scale)
+    limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
+    gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
+    radius = np.where(cols == 0, settings.ego_radius, settings.agent_radius)
+    length, width = vehicles.length, vehicles.width
+    v0 = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (R, 1))
+    v0[:, 0] = rollouts.ego_v0
+    tracked = rollouts.agent_chain.copy()
+    not_self = ~np.eye(n, dtype=bool)[None, :, :]
+
+    def tile(a: np.ndarray) -> np.ndarray:
+        return np.tile(np.asarray(a, dtype=float), (R, 1))
+
+    state = BicycleState(tile(vehicles.s), tile(vehicles.d), tile(vehicles.heading), tile(vehicles.speed),
+                         tile(vehicles.accel), tile(vehicles.curvature))
+    shape = (R, n_steps + 1, n)
+    out = {k: np.zeros(shape) for k in ("s", "d", "heading", "speed", "accel", "curvature")}
+    lead_gap, lead_speed = np.full((R, n_steps + 1), np.inf), np.zeros((R, n_steps + 1))
+    valid = np.ones(R, dtype=bool)
+    barrier_steps = np.zeros(R, dtype=int)
+    gap_front = gap_rear = np.full(R, -1)
+    layer = -1
+    for k in range(n_steps + 1):
+        for key, value in zip(out, (state.x, state.y, state.heading, state.speed, state.accel, state.curvature)):
+            out[key][:, k] = value
+        s, d, v = state.x, state.y, state.speed
+        hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
+                            width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
+                            length[1:] + settings.inflation, width[1:] + settings.inflation)
+        valid &= ~np.any(hit, axis=1)
+        now_chain = frame.nearest_chain(s, d)
+        if k < n_steps and (layer < 0 or k >= layer_end[layer]):
+            layer += 1
+            tracked[:, 0] = rollouts.ego_chain[:, layer]
+            gap_front, gap_rear = _gap_vehicles(frame, s, d, tracked[:, 0], settings.ego_radius)
+        # Leaders on the tracked lane and on the lane each vehicle is in now.
+        ds = s[:, None, :] - s[:, :, None]  # [R, i, j] = s_j - s_i
+        centre_tracked = frame.centre_d(tracked[:, :, None], s[:, None, :])
+        centre_now = frame.centre_d(now_chain[:, :, None], s[:, None, :])
+        ahead = (ds > 0.0) & not_self & (ds < LEADER_RANGE + length[None, None, :])
+        gap_all = ds - 0.5 * (length[None, :, None] + length[None, None, :])
+        band_t = ahead & (np.abs(d[:, None, :] - centre_tracked) < radius[None, :, None])
+        band_c = ahead & (np.abs(d[:, None, :] - centre_now) < radius[None, :, None])
+        gap_t, v_t = _nearest(gap_all, band_t, v)
+        gap_c, v_c = _nearest(gap_all, band_c, v)
+        gap_t, v_t = _lane_end(frame, tracked, s, length, gap_t, v_t, settings.lane_end_margin)
+        gap_c_free, v_c_free = gap_c, v_c
+        gap_c, v_c = _lane_end(frame, now_chain, s, length, gap_c, v_c, settings.lane_end_margin)
+        lead_gap[:, k], lead_speed[:, k] = gap_t[:, 0], v_t[:, 0]
+        if k == n_steps:
+            break
+        dt = t[k + 1] - t[k]
+        free_gap = NO_LEADER_GAP + NO_LEADER_GAP * v
+        cmd_t = idm_speed_command(v, v0, np.where(np.isinf(gap_t), v, v_t), np.where(np.isinf(gap_t), free_gap,
+                                                                                      gap_t), idm, dt)
+        cmd_c = idm_speed_command(v, v0, np.where(np.isinf(gap_c), v, v_c), np.where(np.isinf(gap_c), free_gap,
+                                                                                      gap_c), idm, dt)
+        speed_cmd = np.minimum(cmd_t, cmd_c)
+        target_offset = np.zeros((R, n))
+        # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
+        changing = (tracked[:, 0] != now_chain[:, 0]) & ~rollouts.ego_backup
+        if np.any(changing):
+            lc_cmd, barrier = _lane_change_command(s, v, length, gap_front, gap_rear, idm, v0, settings, rss_ego,
+                                                   rss_agents, dt)
+            hold = changing & barrier
+            # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
+            gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], gap_c_free[:, :1],
+                                     v_c_free[:, :1], 0.0)
+            cmd_go = idm_speed_command(v[:, :1], v0[:, :1], np.where(np.isinf(gap_go), v[:, :1], v_go),
+                                       np.where(np.isinf(gap_go), free_gap[:, :1], gap_go),
+                                       replace(idm, s0=idm.s0[:, :1], headway=idm.headway[:, :1]), dt)[:, 0]
+            current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
+            speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
+            barrier_steps += hold
+            centre_target = frame.centre_d(tracked[:, 0], s[:, 0] + lookahead(v[:, 0], *settings.ego_pursuit))
+            target_offset[:, 0] = np.where(hold, d[:, 0] - centre_target, 0.0)
+        speed_cmd[:, 0] = np.where(rollouts.ego_backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0),
+                                   speed_cmd[:, 0])
+        ell = lookahead(v, gain, l_min, l_max)
+        target_d = frame.centre_d(tracked, s + ell) + target_offset
+        steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
+        state = bicycle_step(state, speed_cmd, steer, limits, dt)
+    return SimResult(t, layer_end, out["s"], out["d"], out["heading"], out["speed"], out["accel"],
+                     out["curvature"], valid, lead_gap, lead_speed, barrier_steps)
+
+
+def _nearest(gap: np.ndarray, mask: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest masked gap per (rollout, vehicle) and that leader's speed (inf / 0 where none)."""
+    masked = np.where(mask, gap, np.inf)
+    j = np.argmin(masked, axis=2)
+    best = np.take_along_axis(masked, j[..., None], axis=2)[..., 0]
+    return best, np.take_along_axis(v, j, axis=1)
+
+
+def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
+              v_lead: np.ndarray, margin: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A lane that ends is a stopped leader ``margin`` m before its end."""
+    end_gap = frame.end_s[chain] - margin - s - 0.5 * length[None, :]
+    closer = end_gap < gap
+    return np.where(closer, end_gap, gap), np.where(closer, 0.0, v_lead)
+
+
+def _gap_vehicles(frame: RoadFrame, s: np.ndarray, d: np.ndarray, target: np.ndarray,
+                  radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per rollout, the nearest agent ahead of and behind the ego on the ego's target lane (-1: none)."""
+    on_target = np.abs(d - frame.centre_d(target[:, None], s)) < radius
+    on_target[:, 0] = False
+    ds = s - s[:, :1]
+    front = np.where(on_target & (ds >= 0.0), ds, np.inf)
+    rear = np.where(on_target & (ds < 0.0), -ds, np.inf)
+    f, r = np.argmin(front, axis=1), np.argmin(rear, axis=1)
+    rows = np.arange(s.shape[0])
+    return np.where(np.isinf(front[rows, f]), -1, f), np.where(np.isinf(rear[rows, r]), -1, r)
+
+
+def _lane_change_command(s: np.ndarray, v: np.ndarray, length: np.ndarray, gap_front: np.ndarray,
+                         gap_rear: np.ndarray, idm: IdmParams, v0: np.ndarray, st: SimSettings, rss_ego: Any,
+                         rss_agents: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back."""
+    rows = np.arange(s.shape[0])
+    has_f, has_r = gap_front >= 0, gap_rear >= 0
+    f, r = np.maximum(gap_front, 0), np.maximum(gap_rear, 0)
+    s_e, v_e = s[:, 0], v[:, 0]
+    s0, T = idm.s0[:, 0], idm.headway[:, 0]
+    half = 0.5 * length[0]
+    s_ref_f = s[rows, f] - 0.5 * length[f]  # gap front's rear bumper
+    s_ref_r = s[rows, r] + 0.5 * length[r]  # gap rear's front bumper
+    v_f, v_r = v[rows, f], v[rows, r]
+    s_thr_f = s_ref_f - s0 - T * v_e - half
+    s_thr_r = s_ref_r + s0 + T * v_r + half
+    v_ref_f = np.maximum(0.0, v_f + np.clip(st.gap_speed_gain * (s_thr_f - s_e), -3.0, 5.0))
+    v_ref_r = np.maximum(0.0, v_r + np.clip(st.gap_speed_gain * (s_thr_r - s_e), -3.0, 5.0))
+    v_pref = v_e + st.preferred_blend * (v0[:, 0] - v_e)
+    mid = 0.5 * (s_ref_f + s_ref_r)
+    both_s = np.clip(s_e, np.minimum(mid, s_thr_r), np.maximum(mid, s_thr_f))
+    both_v = np.minimum(np.maximum(v_ref_r, v_pref), v_ref_f)
+    squeezed = s_ref_f < s_ref_r
+    s_des = np.where(has_f & has_r, np.where(squeezed, s_e, both_s),
+                     np.where(has_f, np.minimum(s_e, s_thr_f), np.where(has_r, np.maximum(s_e, s_thr_r), s_e)))
+    v_des = np.where(has_f & has_r, np.where(squeezed, v_e, both_v),
+                     np.where(has_f, np.minimum(v_pref, v_ref_f), np.where(has_r, np.maximum(v_ref_r, v_pref), v_e)))
+    a_track = np.clip(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
+    cmd = np.maximum(v_e + a_track * dt, 0.0)
+    # RSS towards the gap cars (bumper gaps): the ego ahead of the rear car, behind the front car.
+    gap_to_rear = s_e - half - s_ref_r
+    gap_to_front = s_ref_f - s_e - half
+    p_r, p_f = rss_agents.take(r), rss_agents.take(f)
+    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, p_r)
+    v_high = formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, p_f)
+    too_slow = has_r & (v_e < v_low - 1e-6)
+    cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
+    barrier = too_slow | (has_f & (v_e > v_high + 1e-6))
+    return cmd, barrier

@@ -1,0 +1,282 @@
+"""EpsilonPlanner: one EUDM planning cycle per call (epsilon.md §2-§4, port decisions 1-6), and the MPDM
+baseline (§8) as a configuration of the same machinery.
+
+``plan(snapshot, ego_id)`` builds the planning frame along the ego's route, selects key vehicles, estimates
+their intentions (rule-based belief), branches the uncertain ones that matter (CFB), forward-simulates every
+(policy x scenario) rollout in one vectorised batch, evaluates, reselects by the lane-change context and returns
+the winner's ego trajectory (front-bumper states at absolute times, as SUMO places vehicles). When no policy is
+valid or allowed, the emergency backup (lane keep, braking at the ego's RSS b_min) is executed.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..rss.auditor import ParamResolver
+from ..rss.params import RssParamArrays
+from ..road.network import RoadNetwork
+from ..sim.snapshot import WorldSnapshot
+from ..trajectory import Trajectory
+from .behavior.cfb import branch_scenarios, uncertain_agents
+from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
+from .behavior.evaluation import CostWeights, Navigation, evaluate
+from .behavior.forward_sim import Rollouts, SimResult, SimSettings, Vehicles, simulate
+from .behavior.intention import intention_probabilities
+from .behavior.key_vehicles import KeyVehicles, key_vehicles
+from .behavior.manager import Manager, ManagerSettings
+from .behavior.precheck import intention_matters
+from .lanes import CURRENT, LEFT, RIGHT, lane_chains
+from .road_frame import RoadFrame
+
+MODES = ("epsilon", "mpdm")
+BACKUP = "backup"
+SPEED_STEP_A, SPEED_STEP_D = 10.0, 10.0  # [m/s] acc/dec command gaps of the longitudinal actions
+SPACING_SCALE_ACCELERATE = 0.75  # s0 and T factor of the 'accelerate' action
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner settings; scenario files may override ``layers``, ``layer_duration``, ``sim_step``,
+    ``scenarios_k`` and ``replan_every`` (docs/scenarios.md)."""
+
+    mode: str = "epsilon"
+    desired_speed: float = 20.0  # [m/s] user desired speed
+    layers: int = 5
+    layer_duration: float = 1.0  # [s]
+    sim_step: float = 0.2  # [s]
+    scenarios_k: int = 4
+    replan_every: int = 1
+    sim: SimSettings = SimSettings()
+    costs: CostWeights = CostWeights()
+    manager: ManagerSettings = ManagerSettings()
+
+    @classmethod
+    def mpdm(cls, desired_speed: float) -> PlannerConfig:
+        """The MPDM baseline: 3 lateral policies at constant speed command, one scenario, 4 s at 0.4 s."""
+        return cls(mode="mpdm", desired_speed=desired_speed, layers=4, sim_step=0.4, scenarios_k=1,
+                   manager=ManagerSettings(consistency_frames=2, min_operation_delay=0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """One planning cycle: the ego trajectory and what led to it."""
+
+    trajectory: Trajectory
+    policy: str  # winning policy name, or 'backup'
+    costs: dict[str, float]  # policy name → cost (inf: invalid)
+    timings: dict[str, float]  # [s] per stage
+    agents: int
+    scenarios: int
+    backup: bool
+
+
+@dataclass
+class PlannerStats:
+    cycles: int = 0
+    backups: int = 0
+    cycle_times: list[float] = field(default_factory=list)
+
+
+class EpsilonPlanner:
+    """Plans the ego every call; keeps the manager state between calls (one instance per ego and run)."""
+
+    def __init__(self, network: RoadNetwork, params: ParamResolver, config: PlannerConfig = PlannerConfig()):
+        if config.mode not in MODES:
+            raise ValueError(f"unknown planner mode {config.mode!r}; expected one of {', '.join(MODES)}")
+        self.network = network
+        self.params = params
+        self.config = config
+        self.manager = Manager(config.manager, config.layer_duration)
+        self.stats = PlannerStats()
+        self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
+        self._curvature = 0.0
+
+    # -----------------------------------------------------------------------------------------------------
+    def plan(self, snapshot: WorldSnapshot, ego_id: str) -> PlanResult:
+        cfg = self.config
+        clock = time.perf_counter()
+        ego = snapshot.index_of(ego_id)
+        frame = self.frame_for(snapshot, ego)
+        lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
+        now = snapshot.time
+        self.manager.update_context(now, lane)
+        key = key_vehicles(snapshot, ego, frame)
+        vehicles, params = self._vehicles(snapshot, ego, frame, key)
+        v_ego = float(snapshot.speed[ego])
+        v_ref = self._reference_speed(frame, v_ego)
+        t_scene = time.perf_counter()
+
+        policies = self._policies(now, frame)
+        mandatory = self._mandatory(frame, float(vehicles.s[0]), v_ego)
+        probs = self._intentions(frame, key, snapshot)
+        horizon = float(sum(policies[0].durations))
+        branched = uncertain_agents(probs) & intention_matters(frame, vehicles, key.chain, probs, horizon)
+        scenarios = branch_scenarios(probs, branched, cfg.scenarios_k) if cfg.scenarios_k > 1 else \
+            branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
+        rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
+                                                        snapshot, ego, horizon)
+        t_setup = time.perf_counter()
+        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, _row(params, 0), params,
+                       cfg.sim_step)
+        t_sim = time.perf_counter()
+        nav = self.manager.navigation(now)
+        if mandatory is not None and nav.recommended is None:
+            nav = Navigation(recommended=mandatory)
+        everything = policies + [Policy(Lon.DECELERATE, (Lat.KEEP,) * cfg.layers, policies[0].durations)]
+        agents_params = params.take(np.arange(1, len(vehicles)))
+        if cfg.mode == "mpdm":
+            from .mpdm import mpdm_costs
+            ev = mpdm_costs(sim, everything, policy_of, weight_of, v_ref, vehicles, cfg.costs)
+        else:
+            ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, _row(params, 0), agents_params,
+                          vehicles.length, vehicles.width, cfg.costs)
+        n_real = len(policies)
+        cost = np.where(ev.valid, ev.cost, np.inf)
+        original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
+        chosen = self.manager.select(policies, ev.cost[:n_real], ev.valid[:n_real], now)
+        self.manager.propose(policies[original] if original is not None else None, now, v_ego, lane,
+                             frozenset(frame.chains.lanes[frame.chains.chain_of[CURRENT]]), mandatory)
+        backup = chosen is None
+        winner = n_real if backup else chosen
+        if not backup:
+            self.manager.commit(policies[chosen], now)
+        else:
+            self.manager.commit(everything[-1], now)
+        trajectory = self._trajectory(frame, sim, rollouts, policy_of, weight_of, winner, vehicles, now)
+        done = time.perf_counter()
+        self.stats.cycles += 1
+        self.stats.backups += int(backup)
+        self.stats.cycle_times.append(done - clock)
+        names = [p.name for p in policies] + [BACKUP]
+        return PlanResult(trajectory, BACKUP if backup else names[winner],
+                          {n: float(c) for n, c in zip(names, cost)},
+                          {"scene": t_scene - clock, "setup": t_setup - t_scene, "simulate": t_sim - t_setup,
+                           "evaluate": done - t_sim, "total": done - clock},
+                          len(vehicles) - 1, len(scenarios.weights), backup)
+
+    # -----------------------------------------------------------------------------------------------------
+    def frame_for(self, snapshot: WorldSnapshot, ego: int) -> RoadFrame:
+        """The planning frame along the ego's remaining route (cached per lane and route)."""
+        lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
+        route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
+        key = (lane, tuple(self.network.edge_indices(route).tolist()))
+        frame = self._frames.get(key)
+        if frame is None:
+            if len(self._frames) > 64:
+                self._frames.clear()
+            frame = RoadFrame.build(lane_chains(self.network, lane, np.array(key[1], dtype=int)))
+            self._frames[key] = frame
+        return frame
+
+    def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame,
+                  key: KeyVehicles) -> tuple[Vehicles, RssParamArrays]:
+        rows = np.concatenate([[ego], key.rows]).astype(int)
+        from .behavior.key_vehicles import centres
+        cx, cy = centres(snapshot)
+        s_e, d_e, h_e = frame.to_frame(cx[ego], cy[ego], snapshot.heading[ego])
+        chain_e = frame.nearest_chain(s_e, d_e)
+        n = rows.size
+        curvature = np.zeros(n)
+        curvature[0] = self._curvature
+        vehicles = Vehicles(
+            s=np.concatenate([s_e, key.frame_s]), d=np.concatenate([d_e, key.frame_d]),
+            heading=np.concatenate([h_e, key.heading]), speed=snapshot.speed[rows].astype(float),
+            accel=np.clip(snapshot.accel[rows].astype(float), -self.config.sim.ego_limits.hard_brake,
+                          self.config.sim.ego_limits.max_accel) * (np.arange(n) == 0) +
+            np.clip(snapshot.accel[rows], -4.0, 2.0) * (np.arange(n) > 0),
+            curvature=curvature, length=snapshot.length[rows].astype(float), width=snapshot.width[rows].astype(float),
+            chain=np.concatenate([chain_e, key.chain]).astype(int))
+        params = self.params.arrays(snapshot).take(rows)
+        return vehicles, params
+
+    def _reference_speed(self, frame: RoadFrame, v: float) -> float:
+        horizon = max(20.0, v * v / 1.67)
+        return frame.chains.reference_speed(CURRENT, 0.0, horizon, self.config.desired_speed)
+
+    def _policies(self, now: float, frame: RoadFrame) -> list[Policy]:
+        cfg = self.config
+        if cfg.mode == "mpdm":
+            ongoing = self.manager.ongoing(now)
+            durations = (cfg.layer_duration,) * cfg.layers
+            lats = [ongoing.lat] if ongoing.lat is not Lat.KEEP else list(Lat)
+            out = [Policy(Lon.MAINTAIN, (lat,) * cfg.layers, durations) for lat in lats]
+        else:
+            out = valid_policies(self.manager.ongoing(now), cfg.layers, cfg.layer_duration)
+        return [p for p in out if all(frame.exists[_target(lat)] for lat in p.lats)]
+
+    def _mandatory(self, frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
+        """The direction the ego must change to when its lane ends within reach (the route goes on)."""
+        end = float(frame.end_s[CURRENT])
+        if np.isfinite(end) and end - s_ego < max(150.0, 8.0 * v):
+            if frame.exists[LEFT]:
+                return Lat.LEFT
+            if frame.exists[RIGHT]:
+                return Lat.RIGHT
+        return None
+
+    def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
+        chain = key.chain
+        has_left = (chain < LEFT) & frame.exists[np.minimum(chain + 1, LEFT)]
+        has_right = (chain > RIGHT) & frame.exists[np.maximum(chain - 1, RIGHT)]
+        probs = intention_probabilities(key.d, snapshot.lat_speed[key.rows], has_left, has_right)
+        # An agent whose lane ends ahead will change: towards the lane that goes on, surer the nearer the end.
+        to_end = frame.end_s[chain] - key.frame_s
+        urgency = np.clip(1.0 - to_end / 200.0, 0.0, 0.9) * np.isfinite(to_end)
+        shift = np.where(has_left, urgency, 0.0)
+        probs = probs * (1.0 - shift)[:, None]
+        probs[:, 1] += shift
+        return probs
+
+    def _rollouts(self, policies: list[Policy], scenarios, key: KeyVehicles, vehicles: Vehicles,
+                  frame: RoadFrame, v_ego: float, v_ref: float, snapshot: WorldSnapshot, ego: int,
+                  horizon: float) -> tuple[Rollouts, np.ndarray, np.ndarray]:
+        cfg = self.config
+        P, K = len(policies) + 1, len(scenarios.weights)
+        policy_of = np.repeat(np.arange(P), K)
+        scenario_of = np.tile(np.arange(K), P)
+        base = float(np.floor(v_ego))
+        lon_v0 = {Lon.ACCELERATE: min(base + SPEED_STEP_A, v_ref), Lon.MAINTAIN: min(base, v_ref),
+                  Lon.DECELERATE: min(max(base - SPEED_STEP_D, 0.0), v_ref)}
+        ego_chain = np.array([[_target(lat) for lat in p.lats] for p in policies] +
+                             [[CURRENT] * cfg.layers], dtype=int)[policy_of]
+        v0 = np.array([lon_v0[p.lon] if cfg.mode == "epsilon" else min(v_ego + 5.0, v_ref) for p in policies] +
+                      [0.0])[policy_of]
+        scale = np.array([SPACING_SCALE_ACCELERATE if p.lon is Lon.ACCELERATE else 1.0 for p in policies] +
+                         [1.0])[policy_of]
+        intention = scenarios.intentions[scenario_of]  # [R, agents]
+        step = np.array([0, 1, -1])[intention]  # keep, left, right
+        agent_chain = np.clip(key.chain[None, :] + step, RIGHT, LEFT)
+        agent_chain = np.where(frame.exists[agent_chain], agent_chain, key.chain[None, :])
+        n = len(vehicles)
+        chains = np.zeros((P * K, n), dtype=int)
+        chains[:, 1:] = agent_chain
+        a = snapshot.accel[key.rows]
+        v = snapshot.speed[key.rows]
+        agent_v0 = np.concatenate([[0.0], np.where(a >= 0.0, v, np.maximum(0.0, v + a * horizon))])
+        ego_params = self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))
+        backup_brake = min(ego_params.lon_brake_min + 0.2, cfg.sim.ego_limits.hard_brake)
+        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0)
+        return rollouts, policy_of, scenarios.weights[scenario_of]
+
+    def _trajectory(self, frame: RoadFrame, sim: SimResult, rollouts: Rollouts, policy_of: np.ndarray,
+                    weight_of: np.ndarray, winner: int, vehicles: Vehicles, now: float) -> Trajectory:
+        """The winner's ego states in its most likely scenario, as front-bumper states at absolute times."""
+        candidates = np.flatnonzero(policy_of == winner)
+        r = int(candidates[np.argmax(weight_of[candidates])])
+        s, d, h = sim.s[r, :, 0], sim.d[r, :, 0], sim.heading[r, :, 0]
+        x, y, heading = frame.to_world(s, d, h)
+        half = 0.5 * float(vehicles.length[0])
+        self._curvature = float(sim.curvature[r, 1, 0])
+        return Trajectory(now + sim.t, x + half * np.cos(heading), y + half * np.sin(heading), heading,
+                          sim.speed[r, :, 0], np.concatenate([sim.accel[r, 1:, 0], sim.accel[r, -1:, 0]]))
+
+
+def _target(lat: Lat) -> int:
+    return {Lat.KEEP: CURRENT, Lat.LEFT: LEFT, Lat.RIGHT: RIGHT}[lat]
+
+
+def _row(params: RssParamArrays, i: int):
+    """One vehicle's parameters as scalars (an RssParamArrays of 0-d arrays)."""
+    return RssParamArrays(**{k: np.asarray(v[i]) for k, v in vars(params).items()})

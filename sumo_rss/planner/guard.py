@@ -1,0 +1,151 @@
+"""RSS proper-response guard on the executed ego command (epsilon.md port decision 4; rss.md §5), in the manner
+of ad_rss's ProperResponse / CARLA's RssRestrictor.
+
+Before the planned state for the next step is sent to SUMO it is restricted by
+- the responses the ego owes in its open RSS episodes (from the auditor): no more than a_acc during ρ, at least
+  b_min (b_corr) braking after ρ until stopped, never harder than b_max where the ego is the front car, and a
+  lateral speed towards the other car inside its braking envelope;
+- two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
+  gap to a car ahead in its path is not RSS-safe, and no lateral motion that would make a pair laterally unsafe
+  while it is longitudinally unsafe.
+Every restriction that changes the command is counted. Units: m, s, m/s, m/s².
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..rss import formulas
+from ..rss.auditor import ParamResolver
+from ..rss.responsibility import OwedResponses
+from ..sim.snapshot import WorldSnapshot
+from ..trajectory import TrajectoryState
+from .behavior.key_vehicles import centres
+from .road_frame import RoadFrame
+
+ACCEL_MARGIN = 0.1  # [m/s²] kept inside every acceleration bound (the auditor's tolerance is 0.05)
+STOPPED = 0.05  # [m/s]
+NEIGHBOURHOOD = 150.0  # [m] other cars farther than this are ignored
+
+
+@dataclass
+class GuardCounts:
+    """How often each restriction changed the command."""
+
+    lon_owed: int = 0
+    lat_owed: int = 0
+    lon_predictive: int = 0
+    lat_predictive: int = 0
+    steps: int = 0
+    log: list[tuple[float, str]] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, int]:
+        return {"lon_owed": self.lon_owed, "lat_owed": self.lat_owed, "lon_predictive": self.lon_predictive,
+                "lat_predictive": self.lat_predictive, "steps": self.steps}
+
+
+class ProperResponseGuard:
+    def __init__(self, params: ParamResolver, step: float):
+        self.params = params
+        self.dt = step
+        self.counts = GuardCounts()
+
+    def apply(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, planned: TrajectoryState,
+              owed: OwedResponses) -> TrajectoryState:
+        """The planned state for ``snapshot.time + dt``, restricted as above."""
+        dt, c = self.dt, self.counts
+        c.steps += 1
+        p_all = self.params.arrays(snapshot)
+        p_e = p_all.take(np.array([ego]))
+        cx, cy = centres(snapshot)
+        near = np.flatnonzero(np.hypot(cx - cx[ego], cy - cy[ego]) < NEIGHBOURHOOD)
+        s, d, h = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
+        me = int(np.flatnonzero(near == ego)[0])
+        others = np.delete(np.arange(near.size), me)
+        half = 0.5 * float(snapshot.length[ego])
+        s1, d1, h1 = frame.to_frame(planned.x - half * np.cos(planned.heading),
+                                    planned.y - half * np.sin(planned.heading), planned.heading)
+        s0, d0, v0 = float(s[me]), float(d[me]), float(snapshot.speed[ego])
+        s1, d1 = float(s1[0]), float(d1[0])
+        accel = (planned.speed - v0) / dt
+        t_next = snapshot.time + dt
+
+        # 1. Owed longitudinal responses.
+        tau = t_next - owed.t_b
+        rho, a_acc = float(p_e.response_time[0]), float(p_e.lon_accel_max[0])
+        upper, lower = np.inf, -np.inf
+        if np.any(owed.must_brake & (tau <= rho + 1e-9)):
+            upper = a_acc - ACCEL_MARGIN
+        late = owed.must_brake & (tau > rho + 1e-9)
+        if np.any(late) and v0 >= STOPPED:
+            brake = np.where(owed.brake_correct[late], p_e.lon_brake_min_correct[0], p_e.lon_brake_min[0])
+            upper = min(upper, -float(brake.max()) - ACCEL_MARGIN)
+        if np.any(owed.front_limited):
+            lower = -float(p_e.lon_brake_max[0]) + ACCEL_MARGIN
+        limited = float(np.clip(accel, lower, max(upper, lower)))
+        if limited != accel:
+            c.lon_owed += 1
+            accel = limited
+
+        # 2. No acceleration while a car ahead in the ego's path is closer than the RSS distance.
+        ds = s[others] - s0
+        v_o = snapshot.speed[near[others]]
+        lat_gap = np.abs(d[others] - d0) - 0.5 * (snapshot.width[ego] + snapshot.width[near[others]])
+        p_o = p_all.take(near[others])
+        lat_min_now = formulas.lat_safe_distance(0.0, 0.0, p_e, p_o)
+        in_path = (ds > 0.0) & ~formulas.is_safe_distance(lat_gap, lat_min_now)
+        if accel > 0.0 and np.any(in_path):
+            gap = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])
+            v_up = formulas.max_safe_speed_behind(gap, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
+            cap = max(0.0, (float(np.min(v_up)) - v0) / dt)
+            if cap < accel:
+                c.lon_predictive += 1
+                accel = cap
+        v1 = max(v0 + accel * dt, 0.0)
+
+        # 3. Owed lateral responses: speed towards the other inside the envelope.
+        u_plan = (d1 - d0) / dt  # + = left
+        if np.any(owed.owed_lat):
+            side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
+            t_lat = tau[owed.owed_lat]
+            envelope = owed.u0[owed.owed_lat] + float(p_e.lat_accel_max[0]) * np.minimum(t_lat, rho) - \
+                float(p_e.lat_brake_min[0]) * np.maximum(t_lat - rho, 0.0)
+            bound = np.maximum(envelope - ACCEL_MARGIN * t_lat, 0.0)
+            for sd, b in zip(side, bound):
+                if sd * u_plan > b:
+                    u_plan = sd * b
+                    c.lat_owed += 1
+
+        # 4. No lateral motion into a pair that is longitudinally unsafe.
+        if abs(u_plan) > 1e-9:
+            u_now = float(snapshot.lat_speed[ego])
+            lat_min_now = formulas.lat_safe_distance(np.where(d[others] > d0, snapshot.lat_speed[near[others]],
+                                                              u_now),
+                                                     np.where(d[others] > d0, u_now,
+                                                              snapshot.lat_speed[near[others]]), p_o, p_e)
+            u_towards = np.where(d[others] > d0, u_plan, -u_plan)
+            lat_min_next = formulas.lat_safe_distance(np.where(d[others] > d0, 0.0, u_plan),
+                                                      np.where(d[others] > d0, u_plan, 0.0), p_o, p_e)
+            lat_gap_next = lat_gap - np.maximum(u_towards, 0.0) * dt
+            gap = np.abs(ds) - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]])
+            lon_min = np.where(ds > 0.0, formulas.lon_safe_distance_same_dir(v1, v_o, p_e, p_o),
+                               formulas.lon_safe_distance_same_dir(v_o, v1, p_o, p_e))
+            # Pairs laterally safe now that the move would make unsafe while they are longitudinally unsafe.
+            entering = (u_towards > 0.0) & ~formulas.is_safe_distance(gap, lon_min) & \
+                formulas.is_safe_distance(lat_gap, lat_min_now) & \
+                ~formulas.is_safe_distance(lat_gap_next, lat_min_next)
+            if np.any(entering):
+                c.lat_predictive += 1
+                u_plan = 0.0
+
+        d_new = d0 + u_plan * dt
+        if v1 == planned.speed and abs(d_new - d1) < 1e-9:
+            return TrajectoryState(planned.x, planned.y, planned.heading, v1, (v1 - v0) / dt)
+        travelled = 0.5 * (v0 + v1) * dt
+        s_new = s0 + travelled * np.cos(float(h[me])) if v0 + v1 > 0.0 else s0
+        heading_rel = np.arctan2(d_new - d0, max(s_new - s0, 1e-6)) if v1 > 0.1 else float(h[me])
+        x, y, heading = frame.to_world(np.array([s_new]), np.array([d_new]), np.array([heading_rel]))
+        heading = float(heading[0])
+        return TrajectoryState(float(x[0]) + half * np.cos(heading), float(y[0]) + half * np.sin(heading),
+                               heading, v1, (v1 - v0) / dt)

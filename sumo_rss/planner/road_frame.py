@@ -1,0 +1,113 @@
+"""One Frenet frame for a planning cycle: the ego's lane chain, with the centre lines of its neighbours as
+lateral-offset profiles along it (epsilon.md port: the forward simulation runs in this frame).
+
+In the frame a vehicle is (s, d): s [m] along the ego's chain from the start of the ego's own lane, d [m] its
+offset from that chain's centre line, + = left. The neighbour chains are sampled every metre and projected once,
+so "where is the left lane's centre at s" is an interpolation, and nothing is projected during the simulation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .lanes import CURRENT, LaneChains
+
+GRID_STEP = 1.0  # [m] spacing of the offset profiles
+
+
+@dataclass(frozen=True, eq=False)
+class RoadFrame:
+    """``centre[c, g]``: d of chain c's centre line at s = s0 + g·GRID_STEP (edge values continued where the
+    chain does not reach; ``extent[c]`` is where it does). ``end_s[c]``: where chain c's lane ends for good
+    (inf if it goes on). Chains that do not exist copy the current chain (``exists[c]`` False)."""
+
+    chains: LaneChains
+    s0: float
+    centre: np.ndarray  # [3, G]
+    extent: np.ndarray  # [3, 2] (first, last) s of each chain in the frame
+    end_s: np.ndarray  # [3]
+    exists: np.ndarray  # [3] bool
+    speed_limit: np.ndarray  # [3] m/s
+
+    @classmethod
+    def build(cls, chains: LaneChains) -> RoadFrame:
+        shapes, cur = chains.shapes, int(chains.chain_of[CURRENT])
+        n_cur = int(shapes.count[cur])
+        s_first = -float(chains.start_s[cur])
+        s_last = float(shapes.cumulative[cur, n_cur - 1]) - float(chains.start_s[cur])
+        grid = np.arange(s_first, s_last + GRID_STEP, GRID_STEP)
+        centre = np.zeros((3, grid.size))
+        extent = np.tile([s_first, s_last], (3, 1)).astype(float)
+        end_s = np.full(3, np.inf)
+        exists = np.zeros(3, dtype=bool)
+        limits = np.full(3, float(chains.speed_limit[cur]))
+        for which in range(3):
+            row = int(chains.chain_of[which])
+            if row < 0:
+                continue
+            exists[which] = True
+            limits[which] = float(chains.speed_limit[row])
+            n = int(shapes.count[row])
+            length = float(shapes.cumulative[row, n - 1])
+            along = np.arange(0.0, length + GRID_STEP, GRID_STEP)
+            xs = np.interp(along, shapes.cumulative[row, :n], shapes.points[row, :n, 0])
+            ys = np.interp(along, shapes.cumulative[row, :n], shapes.points[row, :n, 1])
+            if which == CURRENT:
+                s, d = along - chains.start_s[row], np.zeros_like(along)
+            else:
+                s, d = chains.project(CURRENT, xs, ys)
+            order = np.argsort(s, kind="stable")
+            s, d = s[order], d[order]
+            centre[which] = np.interp(grid, s, d)
+            extent[which] = (s[0], s[-1])
+            if chains.dead_end[row]:
+                end_s[which] = s[-1]
+        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits)
+
+    def centre_d(self, chain: Any, s: Any) -> np.ndarray:
+        """d [m] of the centre line of ``chain`` (RIGHT/CURRENT/LEFT, any array shape) at frame positions ``s``."""
+        chain, s = np.broadcast_arrays(np.asarray(chain, dtype=int), np.asarray(s, dtype=float))
+        g = np.clip((s - self.s0) / GRID_STEP, 0.0, self.centre.shape[1] - 1.000001)
+        i = g.astype(int)
+        f = g - i
+        return self.centre[chain, i] * (1.0 - f) + self.centre[chain, i + 1] * f
+
+    def slope(self, chain: Any, s: Any) -> np.ndarray:
+        """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
+        chain, s = np.broadcast_arrays(np.asarray(chain, dtype=int), np.asarray(s, dtype=float))
+        i = np.clip(((s - self.s0) / GRID_STEP).astype(int), 0, self.centre.shape[1] - 2)
+        return np.arctan((self.centre[chain, i + 1] - self.centre[chain, i]) / GRID_STEP)
+
+    def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
+        """The existing chain whose centre line is nearest to each (s, d), within its extent."""
+        s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
+        dist = np.stack([np.abs(d - self.centre_d(np.full(s.shape, c), s)) for c in range(3)])
+        inside = (s >= self.extent[:, 0].reshape((3,) + (1,) * s.ndim)) & \
+            (s <= self.extent[:, 1].reshape((3,) + (1,) * s.ndim))
+        usable = self.exists.reshape((3,) + (1,) * s.ndim) & inside
+        return np.argmin(np.where(usable, dist, np.inf), axis=0)
+
+    def to_frame(self, x: Any, y: Any, heading: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(s, d, heading relative to the centre line) of points in the world [m, m, rad]."""
+        x, y = np.atleast_1d(np.asarray(x, dtype=float)), np.atleast_1d(np.asarray(y, dtype=float))
+        row = int(self.chains.chain_of[CURRENT])
+        s, d, lane_heading = self.chains.shapes.project(np.full(x.size, row), x, y)
+        rel = np.pi - np.mod(np.pi - (np.asarray(heading, dtype=float) - lane_heading), 2.0 * np.pi)
+        return s - self.chains.start_s[row], d, rel
+
+    def to_world(self, s: Any, d: Any, heading_rel: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Inverse of :meth:`to_frame`: (x, y, heading) of frame points."""
+        shapes, row = self.chains.shapes, int(self.chains.chain_of[CURRENT])
+        n = int(shapes.count[row])
+        along = np.asarray(s, dtype=float) + self.chains.start_s[row]
+        cum, pts = shapes.cumulative[row, :n], shapes.points[row, :n]
+        k = np.clip(np.searchsorted(cum, along, side="right") - 1, 0, n - 2)
+        seg = pts[k + 1] - pts[k]
+        seg_len = np.maximum(np.linalg.norm(seg, axis=-1), 1e-9)
+        tangent = seg / seg_len[..., None]
+        base = pts[k] + tangent * (along - cum[k])[..., None]  # continues straight beyond the ends
+        x = base[..., 0] - tangent[..., 1] * d
+        y = base[..., 1] + tangent[..., 0] * d
+        return x, y, np.arctan2(tangent[..., 1], tangent[..., 0]) + np.asarray(heading_rel, dtype=float)
