@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 TORCH  := torch==2.13.0
 PYTEST_WORKERS ?= 2
 
-.PHONY: venv install run test bench nets clean
+.PHONY: venv install run test acceptance bench nets clean
 
 venv: $(BIN)/python
 
@@ -29,6 +29,9 @@ run: install
 
 test: install
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
+
+acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios, ~20 CPU minutes)
+	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) tests/test_planner_closed_loop.py -rxX
 
 bench: install
 	$(BIN)/python bench/run_all.py

@@ -31,7 +31,7 @@ from .spec import Task
 SUMMARY_FILE = "summary.json"
 PLANNER_FILE = "planner.json"
 MANIFEST_FILE = "manifest.json"
-EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lat_pos_m")
+EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lane_pos_m", "lat_pos_m")
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                 if session.ego_on_road:
                     k = snapshot.index_of(session.ego_id)
                     ego_rows.append((snapshot.time, snapshot.x[k], snapshot.y[k], snapshot.speed[k],
-                                     snapshot.accel[k], snapshot.lane_id[k], snapshot.lat_pos[k]))
+                                     snapshot.accel[k], snapshot.lane_id[k], snapshot.lane_pos[k],
+                                     snapshot.lat_pos[k]))
                     if driver is not None and not session.finished:
                         session.place_ego(driver.command(snapshot, auditor))
                 if on_step is not None:
@@ -170,8 +171,8 @@ def _write_ego_trace(path: Path, rows: list[tuple]) -> None:
     with path.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(EGO_TRACE_COLUMNS)
-        writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{lat:.6f}")
-                         for t, x, y, v, a, lane, lat in rows)
+        writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{pos:.6f}",
+                          f"{lat:.6f}") for t, x, y, v, a, lane, pos, lat in rows)
 
 
 def _replace_dir(src: Path, dst: Path) -> None:

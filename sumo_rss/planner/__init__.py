@@ -1,5 +1,3 @@
-"""EPSILON planner port (no libsumo): behaviour layer (EUDM) first; see ../shared/design/epsilon.md.
-
-Work in progress: the building blocks here are tested, the planner is not wired to scenarios yet
-(``controller = "epsilon"`` is refused by ``sumo-rss run``).
-"""
+"""EPSILON planner port (no libsumo): the EUDM behaviour layer drives the ego (``controller = "epsilon"``), the
+MPDM baseline is ``controller = "mpdm"``; see docs/planner.md and ../shared/design/epsilon.md. The motion layer
+(SSC) and the learned intention estimator are not part of this version yet."""

@@ -31,7 +31,7 @@ class EgoDriver:
         self.spec = spec
         self.ego_id = spec.ego.id
         self.planner = EpsilonPlanner(network, planner_params, planner_config(spec))
-        self.guard = ProperResponseGuard(audit_params, spec.step_s)
+        self.guard = ProperResponseGuard(audit_params, spec.step_s, network)
         self._trajectory: Trajectory | None = None
         self._steps = 0
         self.policies: dict[str, int] = {}

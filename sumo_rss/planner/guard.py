@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..road.network import RoadNetwork
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.responsibility import OwedResponses
@@ -46,8 +47,9 @@ class GuardCounts:
 
 
 class ProperResponseGuard:
-    def __init__(self, params: ParamResolver, step: float):
+    def __init__(self, params: ParamResolver, step: float, network: RoadNetwork | None = None):
         self.params = params
+        self.network = network
         self.dt = step
         self.counts = GuardCounts()
 
@@ -104,8 +106,16 @@ class ProperResponseGuard:
                 accel = cap
         v1 = max(v0 + accel * dt, 0.0)
 
-        # 3. Owed lateral responses: speed towards the other inside the envelope.
+        # 3. Owed lateral responses: speed towards the other inside the envelope. The auditor measures the
+        # lateral speed of the front bumper across the ego's SUMO lane, so the envelope is checked on that
+        # measure and the correction applied to the planned lateral offset.
         u_plan = (d1 - d0) / dt  # + = left
+        if np.any(owed.owed_lat) and self.network is not None:
+            lane = self.network.lane_indices(snapshot.lane_id[ego:ego + 1])
+            _, d_bumper, _ = self.network.frenet(np.repeat(lane, 2), np.array([snapshot.x[ego], planned.x]),
+                                                 np.array([snapshot.y[ego], planned.y]))
+            u_plan = (d_bumper[1] - d_bumper[0]) / dt  # the bumper's lateral speed
+        u_planned = u_plan
         if np.any(owed.owed_lat):
             side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
             t_lat = tau[owed.owed_lat]
@@ -139,8 +149,9 @@ class ProperResponseGuard:
                 c.lat_predictive += 1
                 u_plan = 0.0
 
-        d_new = d0 + u_plan * dt
-        if v1 == planned.speed and abs(d_new - d1) < 1e-9:
+        lateral_changed = abs(u_plan - u_planned) > 1e-9
+        d_new = d1 + (u_plan - u_planned) * dt if lateral_changed else d1
+        if v1 == planned.speed and not lateral_changed:
             return TrajectoryState(planned.x, planned.y, planned.heading, v1, (v1 - v0) / dt)
         travelled = 0.5 * (v0 + v1) * dt
         s_new = s0 + travelled * np.cos(float(h[me])) if v0 + v1 > 0.0 else s0

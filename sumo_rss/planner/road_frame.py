@@ -68,11 +68,28 @@ class RoadFrame:
 
     def centre_d(self, chain: Any, s: Any) -> np.ndarray:
         """d [m] of the centre line of ``chain`` (RIGHT/CURRENT/LEFT, any array shape) at frame positions ``s``."""
-        chain, s = np.broadcast_arrays(np.asarray(chain, dtype=int), np.asarray(s, dtype=float))
-        g = np.clip((s - self.s0) / GRID_STEP, 0.0, self.centre.shape[1] - 1.000001)
-        i = g.astype(int)
-        f = g - i
-        return self.centre[chain, i] * (1.0 - f) + self.centre[chain, i + 1] * f
+        i, f = self._grid(s)
+        base = np.asarray(chain, dtype=np.intp) * self.centre.shape[1] + i
+        flat = self.centre.ravel()
+        return flat[base] * (1.0 - f) + flat[base + 1] * f
+
+    def centres_at(self, s: Any) -> np.ndarray:
+        """[3, *s.shape]: d of every chain's centre line at ``s``."""
+        i, f = self._grid(s)
+        return self.centre[:, i] * (1.0 - f) + self.centre[:, i + 1] * f
+
+    def _grid(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
+        g = np.clip((np.asarray(s, dtype=float) - self.s0) / GRID_STEP, 0.0, self.centre.shape[1] - 1.000001)
+        i = g.astype(np.intp)
+        return i, g - i
+
+    def chain_of_offsets(self, centres: np.ndarray, s: Any, d: Any) -> np.ndarray:
+        """The existing chain nearest to each (s, d), given ``centres = centres_at(s)``."""
+        s, d = np.asarray(s, dtype=float), np.asarray(d, dtype=float)
+        shape = (3,) + (1,) * s.ndim
+        usable = self.exists.reshape(shape) & (s >= self.extent[:, 0].reshape(shape)) & \
+            (s <= self.extent[:, 1].reshape(shape))
+        return np.argmin(np.where(usable, np.abs(d - centres), np.inf), axis=0)
 
     def slope(self, chain: Any, s: Any) -> np.ndarray:
         """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
@@ -83,11 +100,7 @@ class RoadFrame:
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""
         s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
-        dist = np.stack([np.abs(d - self.centre_d(np.full(s.shape, c), s)) for c in range(3)])
-        inside = (s >= self.extent[:, 0].reshape((3,) + (1,) * s.ndim)) & \
-            (s <= self.extent[:, 1].reshape((3,) + (1,) * s.ndim))
-        usable = self.exists.reshape((3,) + (1,) * s.ndim) & inside
-        return np.argmin(np.where(usable, dist, np.inf), axis=0)
+        return self.chain_of_offsets(self.centres_at(s), s, d)
 
     def to_frame(self, x: Any, y: Any, heading: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(s, d, heading relative to the centre line) of points in the world [m, m, rad]."""

@@ -128,7 +128,7 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     steer_target = np.arctan(a_lat * L / np.maximum(v_new * v_new, 0.01))
     rate = np.clip(_wrap(steer_target - steer) / dt, -limits.max_steer_rate, limits.max_steer_rate)
     steer_new = steer + rate * dt
-    # Integrate ẋ = v cos θ, ẏ = v sin θ, θ̇ = v tan δ / L with v and δ linear over the step (RK4, 2 substeps).
+    # Integrate ẋ = v cos θ, ẏ = v sin θ, θ̇ = v tan δ / L with v and δ linear over the step (one RK4 step).
     x, y, th = state.x.astype(float), state.y.astype(float), state.heading.astype(float)
     dv, ds = (v_new - v) / dt, (steer_new - steer) / dt
 
@@ -136,15 +136,11 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
         vt, st = v + dv * t, steer + ds * t
         return vt * np.cos(th_), vt * np.sin(th_), vt * np.tan(st) / L
 
-    h = dt / 2.0
-    t = 0.0
-    for _ in range(2):
-        k1 = deriv(t, th)
-        k2 = deriv(t + h / 2, th + h / 2 * k1[2])
-        k3 = deriv(t + h / 2, th + h / 2 * k2[2])
-        k4 = deriv(t + h, th + h * k3[2])
-        x = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        y = y + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        th = th + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
-        t += h
+    k1 = deriv(0.0, th)
+    k2 = deriv(dt / 2, th + dt / 2 * k1[2])
+    k3 = deriv(dt / 2, th + dt / 2 * k2[2])
+    k4 = deriv(dt, th + dt * k3[2])
+    x = x + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+    y = y + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    th = th + dt / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
     return BicycleState(x, y, _wrap(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)

@@ -128,9 +128,14 @@ def _per_vehicle(ego: Any, agent: Any, n: int) -> Any:
 
 def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any, bh: Any, bl: Any,
                   bw: Any) -> np.ndarray:
-    """Whether oriented boxes (centre, heading, length, width) overlap: separating-axis test, broadcast."""
+    """Whether oriented boxes (centre, heading, length, width) overlap: separating-axis test, broadcast (only
+    where the bounding circles meet)."""
     dx, dy = np.asarray(bx) - ax, np.asarray(by) - ay
-    separated = np.zeros(np.broadcast(dx, dy, ah, bh).shape, dtype=bool)
+    reach = 0.5 * (np.hypot(al, aw) + np.hypot(bl, bw))
+    shape = np.broadcast(dx, dy, ah, bh).shape
+    if not np.any(dx * dx + dy * dy < reach * reach):
+        return np.zeros(shape, dtype=bool)
+    separated = np.zeros(shape, dtype=bool)
     for phi in (ah, np.asarray(ah) + np.pi / 2, bh, np.asarray(bh) + np.pi / 2):
         c, s = np.cos(phi), np.sin(phi)
         dist = np.abs(dx * c + dy * s)
@@ -181,15 +186,19 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                             width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
                             length[1:] + settings.inflation, width[1:] + settings.inflation)
         valid &= ~np.any(hit, axis=1)
-        now_chain = frame.nearest_chain(s, d)
+        centres = frame.centres_at(s)  # [3, R, n]
+        now_chain = frame.chain_of_offsets(centres, s, d)
         if k < n_steps and (layer < 0 or k >= layer_end[layer]):
             layer += 1
             tracked[:, 0] = rollouts.ego_chain[:, layer]
-            gap_front, gap_rear = _gap_vehicles(frame, s, d, tracked[:, 0], settings.ego_radius)
+            gap_front, gap_rear = _gap_vehicles(centres, s, d, tracked[:, 0], settings.ego_radius)
         # Leaders on the tracked lane and on the lane each vehicle is in now.
         ds = s[:, None, :] - s[:, :, None]  # [R, i, j] = s_j - s_i
-        centre_tracked = frame.centre_d(tracked[:, :, None], s[:, None, :])
-        centre_now = frame.centre_d(now_chain[:, :, None], s[:, None, :])
+        # centre_x[r, i, j]: where the lane vehicle i tracks (is in) lies at vehicle j's position.
+        by_rollout = centres.transpose(1, 0, 2)  # [R, 3, n]
+        r_idx, j_idx = np.arange(R)[:, None, None], np.arange(n)[None, None, :]
+        centre_tracked = by_rollout[r_idx, tracked[:, :, None], j_idx]
+        centre_now = by_rollout[r_idx, now_chain[:, :, None], j_idx]
         ahead = (ds > 0.0) & not_self & (ds < LEADER_RANGE + length[None, None, :])
         gap_all = ds - 0.5 * (length[None, :, None] + length[None, None, :])
         band_t = ahead & (np.abs(d[:, None, :] - centre_tracked) < radius[None, :, None])
@@ -204,10 +213,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             break
         dt = t[k + 1] - t[k]
         free_gap = NO_LEADER_GAP + NO_LEADER_GAP * v
-        cmd_t = idm_speed_command(v, v0, np.where(np.isinf(gap_t), v, v_t), np.where(np.isinf(gap_t), free_gap,
-                                                                                      gap_t), idm, dt)
-        cmd_c = idm_speed_command(v, v0, np.where(np.isinf(gap_c), v, v_c), np.where(np.isinf(gap_c), free_gap,
-                                                                                      gap_c), idm, dt)
+        gaps, v_leads = np.stack([gap_t, gap_c]), np.stack([v_t, v_c])  # both leaders in one call
+        cmd_t, cmd_c = idm_speed_command(v, v0, np.where(np.isinf(gaps), v, v_leads),
+                                         np.where(np.isinf(gaps), free_gap, gaps), idm, dt)
         speed_cmd = np.minimum(cmd_t, cmd_c)
         target_offset = np.zeros((R, n))
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
@@ -253,10 +261,12 @@ def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.nda
     return np.where(closer, end_gap, gap), np.where(closer, 0.0, v_lead)
 
 
-def _gap_vehicles(frame: RoadFrame, s: np.ndarray, d: np.ndarray, target: np.ndarray,
+def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray,
                   radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per rollout, the nearest agent ahead of and behind the ego on the ego's target lane (-1: none)."""
-    on_target = np.abs(d - frame.centre_d(target[:, None], s)) < radius
+    """Per rollout, the nearest agent ahead of and behind the ego on the ego's target lane (-1: none);
+    ``centres``: [3, R, n] lane centres at every vehicle's position."""
+    on_target = np.abs(d - np.take_along_axis(centres.transpose(1, 0, 2), target[:, None, None], axis=1)[:, 0]) \
+        < radius
     on_target[:, 0] = False
     ds = s - s[:, :1]
     front = np.where(on_target & (ds >= 0.0), ds, np.inf)

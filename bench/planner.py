@@ -1,0 +1,112 @@
+"""EPSILON planner: planning-cycle time with 10 / 20 / 40 key agents, the closed-loop real-time factor of
+highway_dense with the EPSILON ego and the every-pair audit, and ego speed / responsibility of the epsilon, sumo
+and mpdm controllers on the same seeds.
+
+Targets (issue 5): median cycle <= 30 ms and p99 <= 80 ms with 20 agents on one core; closed loop >= 5x real
+time; ego mean speed >= the sumo baseline's on the same seeds while never responsible.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _results import record  # noqa: E402
+
+from sumo_rss import load_scenario  # noqa: E402
+from sumo_rss.batch.runner import run_one  # noqa: E402
+from sumo_rss.planner.epsilon import EpsilonPlanner, PlannerConfig  # noqa: E402
+from sumo_rss.road.network import RoadNetwork  # noqa: E402
+from sumo_rss.rss.auditor import ParamResolver  # noqa: E402
+from sumo_rss.sim.snapshot import WorldSnapshot  # noqa: E402
+
+CYCLES = 60
+SEEDS = (0, 1, 2)
+CLOSED_LOOP_S = 150.0  # simulated seconds per comparison run (the ego departs at 30 s)
+LANES_Y = (-8.75, -5.25, -1.75)  # hw0 lane centres
+
+
+def synthetic_snapshot(agents: int, rng: np.random.Generator) -> WorldSnapshot:
+    """The ego at x = 600 m in the middle lane of hw0 at 25 m/s; ``agents`` cars spread over the three lanes
+    from 100 m behind to 160 m ahead, some drifting towards a lane boundary (uncertain intentions)."""
+    n = agents + 1
+    x = np.concatenate([[600.0], 600.0 + np.linspace(-100.0, 160.0, agents) + rng.uniform(-3, 3, agents)])
+    lane = np.concatenate([[1], rng.integers(0, 3, agents)])
+    drift = np.concatenate([[0.0], rng.choice([0.0, 0.0, 0.6, -0.6], agents)])
+    y = np.array(LANES_Y)[lane] + drift
+    speed = np.concatenate([[25.0], rng.uniform(18.0, 30.0, agents)])
+    z = np.zeros(n)
+    lat_speed = np.sign(drift) * 0.5
+    return WorldSnapshot(time=40.0, ids=np.array([f"v{i}" for i in range(n)]), x=x, y=y, heading=z.copy(),
+                         speed=speed, accel=z.copy(), lat_speed=lat_speed, length=np.full(n, 4.5),
+                         width=np.full(n, 1.8), lane_id=np.array([f"hw0_{k}" for k in lane]),
+                         edge_id=np.full(n, "hw0"), lane_index=lane, lane_pos=x, lat_pos=drift,
+                         vclass=np.array(["ego"] + ["background"] * agents), vtype=np.full(n, "car"),
+                         signals=np.zeros(n, int), route_index=np.zeros(n, int),
+                         route_edges=tuple(("hw0", "hw1", "hw2") for _ in range(n)))
+
+
+def cycle_times(network: RoadNetwork, agents: int) -> dict:
+    rng = np.random.default_rng(agents)
+    times, scenarios, key = [], [], []
+    for k in range(CYCLES):
+        snapshot = synthetic_snapshot(agents, rng)
+        planner = EpsilonPlanner(network, ParamResolver(), PlannerConfig(desired_speed=30.0))
+        started = time.perf_counter()
+        result = planner.plan(snapshot, "v0")
+        times.append(time.perf_counter() - started)
+        scenarios.append(result.scenarios)
+        key.append(result.agents)
+    ms = np.array(times[3:]) * 1000.0  # the first cycles build caches
+    return {"key_agents_mean": float(np.mean(key)), "scenarios_mean": float(np.mean(scenarios)),
+            "median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
+            "p99_ms": float(np.percentile(ms, 99))}
+
+
+def closed_loop(controller: str, seed: int) -> dict:
+    spec = load_scenario(REPO / "scenarios" / "highway_dense.toml").with_overrides(seed=seed,
+                                                                                  duration_s=CLOSED_LOOP_S)
+    spec = replace(spec, ego=replace(spec.ego, controller=controller))
+    out = Path(tempfile.mkdtemp(prefix="sumo_rss_bench_"))
+    try:
+        summary = run_one(spec, out)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    ego_collisions = sum(summary.ego_id in (c["collider"], c["victim"]) for c in summary.collision_events)
+    planner = summary.planner or {}
+    return {"real_time_factor": summary.real_time_factor, "ego_mean_speed_ms": summary.ego_mean_speed_ms,
+            "ego_responsible_episodes": summary.ego_responsible_episodes, "ego_collisions": ego_collisions,
+            "lane_changes": planner.get("lane_changes_completed"), "cycle_ms_median": planner.get("cycle_ms_median"),
+            "guard": planner.get("guard")}
+
+
+def main() -> None:
+    network = RoadNetwork.from_file(REPO / "networks" / "highway" / "highway.net.xml")
+    figures: dict = {"cycle": {str(n): cycle_times(network, n) for n in (10, 20, 40)}}
+    comparison = {c: {str(seed): closed_loop(c, seed) for seed in SEEDS} for c in ("epsilon", "sumo", "mpdm")}
+    figures["closed_loop_highway_dense"] = comparison
+    speed = {c: float(np.mean([r["ego_mean_speed_ms"] for r in runs.values()])) for c, runs in comparison.items()}
+    twenty = figures["cycle"]["20"]
+    figures["targets"] = {
+        "median_cycle_20_agents_le_30ms": twenty["median_ms"] <= 30.0, "p99_cycle_20_agents_le_80ms":
+            twenty["p99_ms"] <= 80.0,
+        "closed_loop_ge_5x": min(r["real_time_factor"] for r in comparison["epsilon"].values()) >= 5.0,
+        "ego_speed_ge_sumo": speed["epsilon"] >= speed["sumo"],
+        "never_responsible": all(r["ego_responsible_episodes"] == 0 for r in comparison["epsilon"].values())}
+    figures["ego_mean_speed_ms"] = speed
+    record("planner", figures)
+    print(json.dumps({"cycle": figures["cycle"], "ego_mean_speed_ms": speed, "targets": figures["targets"]},
+                     indent=1))
+
+
+if __name__ == "__main__":
+    main()

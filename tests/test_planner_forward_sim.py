@@ -1,0 +1,148 @@
+"""Forward simulation, evaluation and the planner's backup on the straight part of the highway net (hw0: lanes
+at y = -8.75 / -5.25 / -1.75, 3.5 m apart; the frame's s runs along +x from the start of hw0)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import NETWORKS
+from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, simulate, \
+    step_times
+from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
+from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
+from sumo_rss.planner.road_frame import RoadFrame
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import ParamResolver
+from sumo_rss.rss.params import RssParamArrays, RssParams
+from sumo_rss.sim.snapshot import WorldSnapshot
+
+
+@pytest.fixture(scope="module")
+def highway():
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
+    return net, frame
+
+
+def _vehicles(s, d, v, length=4.5, chain=None):
+    n = len(s)
+    z = np.zeros(n)
+    return Vehicles(np.asarray(s, float), np.asarray(d, float), z.copy(), np.asarray(v, float), z.copy(), z.copy(),
+                    np.full(n, length), np.full(n, 1.8), np.asarray(chain if chain is not None else [CURRENT] * n))
+
+
+def _keep(n_rollouts, n, layers=5, v0=20.0, chains=None):
+    return Rollouts(np.full((n_rollouts, layers), CURRENT), np.full(n_rollouts, v0), np.ones(n_rollouts),
+                    np.zeros(n_rollouts, dtype=bool), 4.2,
+                    np.full((n_rollouts, n), CURRENT) if chains is None else chains, np.zeros(n))
+
+
+def test_frame_offsets_and_round_trip(highway):
+    _, frame = highway
+    assert frame.exists.tolist() == [True, True, True]
+    np.testing.assert_allclose(frame.centre_d([RIGHT, CURRENT, LEFT], [100.0] * 3), [-3.5, 0.0, 3.5], atol=1e-9)
+    x, y, h = frame.to_world(np.array([100.0]), np.array([1.0]), np.array([0.1]))
+    np.testing.assert_allclose([x[0], y[0], h[0]], [100.0, -4.25, 0.1], atol=1e-9)
+    s, d, rel = frame.to_frame(x, y, h)
+    np.testing.assert_allclose([s[0], d[0], rel[0]], [100.0, 1.0, 0.1], atol=1e-9)
+
+
+def test_step_times_keep_the_decision_grid():
+    t, ends = step_times((0.3, 1.0, 1.0), 0.2)
+    np.testing.assert_allclose(t, [0, 0.15, 0.3, 0.5, 0.7, 0.9, 1.1, 1.3, 1.5, 1.7, 1.9, 2.1, 2.3])
+    assert ends.tolist() == [2, 7, 12]
+
+
+def test_boxes_overlap_hand_cases():
+    # Two 4 x 2 boxes: centres 3.9 m apart along x overlap, 4.1 m do not; rotated by 90° the second is 2 long.
+    assert boxes_overlap(0, 0, 0, 4, 2, 3.9, 0, 0, 4, 2) and not boxes_overlap(0, 0, 0, 4, 2, 4.1, 0, 0, 4, 2)
+    assert boxes_overlap(0, 0, 0, 4, 2, 2.9, 0, np.pi / 2, 4, 2)
+    assert not boxes_overlap(0, 0, 0, 4, 2, 3.1, 0, np.pi / 2, 4, 2)
+
+
+def test_follower_behind_a_stopped_car_stops_without_collision(highway):
+    _, frame = highway
+    # The ego at 15 m/s, 60 m behind a stopped car in its lane (bumper gap 55.5 m); 5 s of keep-lane.
+    vehicles = _vehicles([100.0, 160.0], [0.0, 0.0], [15.0, 0.0])
+    p = RssParamArrays.stack([RssParams()] * 2)
+    sim = simulate(frame, vehicles, _keep(1, 2, layers=8, v0=20.0), (1.0,) * 8, SimSettings(), RssParams(), p)
+    gap = sim.s[0, :, 1] - sim.s[0, :, 0] - 4.5
+    assert sim.valid[0] and gap.min() > 0.5
+    assert sim.speed[0, -1, 0] < 0.5 and np.all(sim.speed[0, :, 1] == 0.0)
+    # The ego's leader is the stopped car at every sample.
+    np.testing.assert_allclose(sim.ego_lead_gap[0], gap)
+
+
+def test_agent_behind_a_stopped_agent_stops_and_the_ego_is_its_leader(highway):
+    _, frame = highway
+    # Column 1 (an agent) follows the ego, which is stopped; agents use a 1.0 m minimum gap.
+    vehicles = _vehicles([160.0, 110.0], [0.0, 0.0], [0.0, 14.0])
+    p = RssParamArrays.stack([RssParams()] * 2)
+    rollouts = _keep(1, 2, layers=8, v0=0.0)
+    rollouts = Rollouts(rollouts.ego_chain, rollouts.ego_v0, rollouts.ego_spacing_scale, rollouts.ego_backup, 4.2,
+                        rollouts.agent_chain, np.array([0.0, 14.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 8, SimSettings(), RssParams(), p)
+    assert sim.valid[0] and sim.speed[0, -1, 1] < 0.5
+    assert (sim.s[0, :, 0] - sim.s[0, :, 1] - 4.5).min() > 0.5
+
+
+def test_lane_change_rollout_crosses_into_the_left_lane_unless_the_gap_is_unsafe(highway):
+    _, frame = highway
+    p = RssParamArrays.stack([RssParams()] * 2)
+    # Left lane free (the only agent far behind in the right lane): the ego crosses the lane boundary (1.75 m)
+    # and keeps going towards the left lane's centre.
+    vehicles = _vehicles([100.0, 20.0], [0.0, -3.5], [20.0, 20.0], chain=[CURRENT, RIGHT])
+    ego_chain = np.array([[CURRENT, LEFT, LEFT, LEFT, LEFT]])
+    free = Rollouts(ego_chain, np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2, np.array([[1, RIGHT]]),
+                    np.array([0.0, 20.0]))
+    sim = simulate(frame, vehicles, free, (1.0,) * 5, SimSettings(), RssParams(), p)
+    assert sim.valid[0] and sim.d[0, -1, 0] > 1.75 and np.all(np.diff(sim.d[0, 6:, 0]) > 0.0)
+    beside = _vehicles([100.0, 100.0], [0.0, 3.5], [20.0, 20.0], chain=[CURRENT, LEFT])
+    blocked = Rollouts(ego_chain, np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2, np.array([[1, LEFT]]),
+                       np.array([0.0, 20.0]))
+    sim = simulate(frame, beside, blocked, (1.0,) * 5, SimSettings(), RssParams(), p)
+    # The RSS barrier holds the ego in its lane (no lateral progress beside an unsafe gap), so it is valid but
+    # does not reach the left lane.
+    assert sim.barrier_steps[0] > 0 and sim.d[0, -1, 0] < 1.5
+
+
+def _snapshot(xs, ys, speeds, lanes, ego=0):
+    n = len(xs)
+    f = np.zeros(n)
+    edges = [lane.rsplit("_", 1)[0] for lane in lanes]
+    vclass = np.array(["background"] * n)
+    vclass[ego] = "ego"
+    return WorldSnapshot(time=40.0, ids=np.array([f"v{i}" for i in range(n)]), x=np.asarray(xs, float),
+                         y=np.asarray(ys, float), heading=f.copy(), speed=np.asarray(speeds, float), accel=f.copy(),
+                         lat_speed=f.copy(), length=np.full(n, 4.5), width=np.full(n, 1.8),
+                         lane_id=np.array(lanes), edge_id=np.array(edges), lane_index=np.array(
+                             [int(lane.rsplit("_", 1)[1]) for lane in lanes]),
+                         lane_pos=np.asarray(xs, float), lat_pos=f.copy(), vclass=vclass,
+                         vtype=np.array(["car"] * n), signals=np.zeros(n, int), route_index=np.zeros(n, int),
+                         route_edges=tuple(("hw0", "hw1", "hw2") for _ in range(n)))
+
+
+def test_backup_is_chosen_when_every_policy_collides(highway):
+    net, _ = highway
+    # The ego at 30 m/s; stopped cars 14 m ahead (front bumpers) in all three lanes: nothing avoids them.
+    snap = _snapshot([300.0, 318.5, 318.5, 318.5], [-5.25, -5.25, -8.75, -1.75], [30.0, 0.0, 0.0, 0.0],
+                     ["hw0_1", "hw0_1", "hw0_0", "hw0_2"])
+    planner = EpsilonPlanner(net, ParamResolver(), PlannerConfig(desired_speed=30.0))
+    result = planner.plan(snap, "v0")
+    assert result.backup and result.policy == BACKUP
+    assert all(np.isinf(c) for name, c in result.costs.items() if name != BACKUP)
+    # The backup keeps the lane and brakes at b_min + 0.2 = 4.2 m/s² (ad_rss ego).
+    np.testing.assert_allclose(result.trajectory.y, -5.25, atol=0.05)
+    speed, elapsed = result.trajectory.speed, result.trajectory.t - 40.0
+    assert np.all(np.diff(speed) <= 1e-9)
+    # Braking ramps up at the 5 m/s³ jerk limit, then holds 4.2 m/s².
+    assert speed[-1] < 30.0 - 4.2 * (elapsed[-1] - 1.0) + 1e-6
+
+
+def test_free_road_prefers_keeping_the_lane_and_accelerating(highway):
+    net, _ = highway
+    snap = _snapshot([300.0], [-5.25], [20.0], ["hw0_1"])
+    result = EpsilonPlanner(net, ParamResolver(), PlannerConfig(desired_speed=30.0)).plan(snap, "v0")
+    assert result.policy == "A:KKKKK" and not result.backup
+    assert result.agents == 0 and result.scenarios == 1
+    assert result.trajectory.speed[-1] > 20.5
