@@ -74,7 +74,6 @@ class PlanResult:
 
 @dataclass
 class PlannerStats:
-    cycles: int = 0
     backups: int = 0
     cycle_times: list[float] = field(default_factory=list)
 
@@ -118,8 +117,8 @@ class EpsilonPlanner:
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
         t_setup = time.perf_counter()
-        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, _row(params, 0), params,
-                       cfg.sim_step)
+        ego_params = _row(params, 0)
+        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:
@@ -130,7 +129,7 @@ class EpsilonPlanner:
             from .mpdm import mpdm_costs
             ev = mpdm_costs(sim, everything, policy_of, weight_of, v_ref, vehicles, cfg.costs)
         else:
-            ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, _row(params, 0), agents_params,
+            ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, ego_params, agents_params,
                           vehicles.length, vehicles.width, cfg.costs)
         n_real = len(policies)
         cost = np.where(ev.valid, ev.cost, np.inf)
@@ -140,13 +139,9 @@ class EpsilonPlanner:
                              frozenset(frame.chains.lanes[frame.chains.chain_of[CURRENT]]), mandatory)
         backup = chosen is None
         winner = n_real if backup else chosen
-        if not backup:
-            self.manager.commit(policies[chosen], now)
-        else:
-            self.manager.commit(everything[-1], now)
+        self.manager.commit(everything[winner], now)
         trajectory = self._trajectory(frame, sim, rollouts, policy_of, weight_of, winner, vehicles, now)
         done = time.perf_counter()
-        self.stats.cycles += 1
         self.stats.backups += int(backup)
         self.stats.cycle_times.append(done - clock)
         names = [p.name for p in policies] + [BACKUP]
@@ -173,19 +168,19 @@ class EpsilonPlanner:
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame,
                   key: KeyVehicles) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
-        from .behavior.key_vehicles import centres
-        cx, cy = centres(snapshot)
+        cx, cy = snapshot.centres()
         s_e, d_e, h_e = frame.to_frame(cx[ego], cy[ego], snapshot.heading[ego])
         chain_e = frame.nearest_chain(s_e, d_e)
         n = rows.size
+        ego_column, limits = np.arange(n) == 0, self.config.sim
         curvature = np.zeros(n)
         curvature[0] = self._curvature
         vehicles = Vehicles(
             s=np.concatenate([s_e, key.frame_s]), d=np.concatenate([d_e, key.frame_d]),
             heading=np.concatenate([h_e, key.heading]), speed=snapshot.speed[rows].astype(float),
-            accel=np.clip(snapshot.accel[rows].astype(float), -self.config.sim.ego_limits.hard_brake,
-                          self.config.sim.ego_limits.max_accel) * (np.arange(n) == 0) +
-            np.clip(snapshot.accel[rows], -4.0, 2.0) * (np.arange(n) > 0),
+            accel=np.clip(snapshot.accel[rows].astype(float), -np.where(ego_column, limits.ego_limits.hard_brake,
+                                                                        limits.agent_limits.hard_brake),
+                          np.where(ego_column, limits.ego_limits.max_accel, limits.agent_limits.max_accel)),
             curvature=curvature, length=snapshot.length[rows].astype(float), width=snapshot.width[rows].astype(float),
             chain=np.concatenate([chain_e, key.chain]).astype(int))
         params = self.params.arrays(snapshot).take(rows)

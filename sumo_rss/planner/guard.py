@@ -22,7 +22,6 @@ from ..rss.auditor import ParamResolver
 from ..rss.responsibility import OwedResponses
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
-from .behavior.key_vehicles import centres
 from .road_frame import RoadFrame
 
 ACCEL_MARGIN = 0.1  # [m/s²] kept inside every acceleration bound (the auditor's tolerance is 0.05)
@@ -60,7 +59,7 @@ class ProperResponseGuard:
         c.steps += 1
         p_all = self.params.arrays(snapshot)
         p_e = p_all.take(np.array([ego]))
-        cx, cy = centres(snapshot)
+        cx, cy = snapshot.centres()
         near = np.flatnonzero(np.hypot(cx - cx[ego], cy - cy[ego]) < NEIGHBOURHOOD)
         s, d, h = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
         me = int(np.flatnonzero(near == ego)[0])

@@ -149,8 +149,7 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
                   route_edges: np.ndarray) -> VehicleFrame:
     """Per-vehicle geometry in the network and the per-car terms of the safe distances."""
     lane = network.lane_indices(snapshot.lane_id)
-    cx = snapshot.x - 0.5 * snapshot.length * np.cos(snapshot.heading)
-    cy = snapshot.y - 0.5 * snapshot.length * np.sin(snapshot.heading)
+    cx, cy = snapshot.centres()
     # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
     hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
     s, d, lane_heading = network.frenet(lane, cx, cy, hint)

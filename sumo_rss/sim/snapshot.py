@@ -66,6 +66,11 @@ class WorldSnapshot:
             raise KeyError(vehicle_id)
         return int(hits[0])
 
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """Geometric centres (x, y) [m] of all vehicles (SUMO reports the front-bumper centre)."""
+        return (self.x - 0.5 * self.length * np.cos(self.heading),
+                self.y - 0.5 * self.length * np.sin(self.heading))
+
     def array_fields(self) -> dict[str, np.ndarray]:
         return {f.name: getattr(self, f.name) for f in fields(self) if isinstance(getattr(self, f.name), np.ndarray)}
 

@@ -31,15 +31,9 @@ class KeyVehicles:
     heading: np.ndarray  # heading relative to the frame's centre line [rad]
 
 
-def centres(snapshot: WorldSnapshot) -> tuple[np.ndarray, np.ndarray]:
-    """Geometric centres (x, y) [m] of all vehicles (SUMO reports the front bumper)."""
-    return (snapshot.x - 0.5 * snapshot.length * np.cos(snapshot.heading),
-            snapshot.y - 0.5 * snapshot.length * np.sin(snapshot.heading))
-
-
 def key_vehicles(snapshot: WorldSnapshot, ego_row: int, frame: RoadFrame) -> KeyVehicles:
     """Vehicles on a key lane within R_f ahead of the ego or max(20, 5·|v|) behind it."""
-    cx, cy = centres(snapshot)
+    cx, cy = snapshot.centres()
     near = np.flatnonzero(np.hypot(cx - cx[ego_row], cy - cy[ego_row]) <= SEARCH_RADIUS)
     s, d, rel = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
     chain = frame.nearest_chain(s, d)
