@@ -47,6 +47,26 @@ def test_frame_offsets_and_round_trip(highway):
     np.testing.assert_allclose([s[0], d[0], rel[0]], [100.0, 1.0, 0.1], atol=1e-9)
 
 
+def test_bumper_placement_keeps_the_lateral_offset_across_polyline_vertices(highway):
+    """hw1 is a curve stored as a polyline (a vertex every ~34 m, ~1° apart). A car whose centre keeps d and its
+    heading against the lane is placed so that SUMO reads a constant lateral offset of its front bumper — no
+    phantom lateral speed at the vertices — and the placement inverts exactly."""
+    net, frame = highway
+    hw1 = int(net.lane_indices(["hw1_1"])[0])
+    s = frame.to_frame(*net.shapes.points[hw1, 0], 0.0)[0][0] + np.arange(20.0, 220.0, 0.5)
+    d, rel, half = np.full(s.size, 0.3), np.full(s.size, 0.02), 2.35
+    x, y, heading = frame.bumper_at(s, d, rel, half)
+    _, bumper_offset, _ = net.frenet(np.full(s.size, hw1), x, y)
+    np.testing.assert_allclose(bumper_offset, 0.3 + half * np.sin(0.02), atol=1e-6)
+    back = frame.centre_of_bumper(x, y, heading, half)
+    np.testing.assert_allclose(np.stack(back), np.stack([s, d, rel]), atol=1e-6)
+    # Rotating the bumper about the centre by the smooth heading instead reads ±v·Δangle/2 at every vertex.
+    cx, cy, _ = frame.to_world(s, d, rel)
+    smooth = np.interp(s, s[::60], np.unwrap(heading)[::60])
+    _, rotated, _ = net.frenet(np.full(s.size, hw1), cx + half * np.cos(smooth), cy + half * np.sin(smooth))
+    assert np.ptp(rotated) > 0.02
+
+
 def test_step_times_keep_the_decision_grid():
     t, ends = step_times((0.3, 1.0, 1.0), 0.2)
     np.testing.assert_allclose(t, [0, 0.15, 0.3, 0.5, 0.7, 0.9, 1.1, 1.3, 1.5, 1.7, 1.9, 2.1, 2.3])

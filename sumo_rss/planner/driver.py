@@ -2,6 +2,8 @@
 through the RSS proper-response guard, and keep the numbers a run reports about its planner."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..road.network import RoadNetwork
@@ -17,10 +19,11 @@ def planner_config(spec: ScenarioSpec) -> PlannerConfig:
     """The planner configuration a scenario asks for (``ego.controller`` and ``[ego.planner]``)."""
     ego = spec.ego
     if ego.controller == "mpdm":
-        return PlannerConfig.mpdm(ego.desired_speed)
+        return replace(PlannerConfig.mpdm(ego.desired_speed), output_step=spec.step_s)
     o = ego.planner
     return PlannerConfig(desired_speed=ego.desired_speed, layers=o.layers, layer_duration=o.layer_duration_s,
-                         sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every)
+                         sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every,
+                         output_step=spec.step_s)
 
 
 class EgoDriver:
@@ -31,7 +34,7 @@ class EgoDriver:
         self.spec = spec
         self.ego_id = spec.ego.id
         self.planner = EpsilonPlanner(network, planner_params, planner_config(spec))
-        self.guard = ProperResponseGuard(audit_params, spec.step_s, network)
+        self.guard = ProperResponseGuard(audit_params, spec.step_s)
         self._trajectory: Trajectory | None = None
         self._steps = 0
         self.policies: dict[str, int] = {}

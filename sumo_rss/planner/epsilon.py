@@ -48,6 +48,7 @@ class PlannerConfig:
     sim_step: float = 0.2  # [s]
     scenarios_k: int = 4
     replan_every: int = 1
+    output_step: float = 0.1  # [s] sampling of the returned trajectory (the co-simulation step)
     sim: SimSettings = SimSettings()
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
@@ -168,8 +169,8 @@ class EpsilonPlanner:
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame,
                   key: KeyVehicles) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
-        cx, cy = snapshot.centres()
-        s_e, d_e, h_e = frame.to_frame(cx[ego], cy[ego], snapshot.heading[ego])
+        s_e, d_e, h_e = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
+                                               0.5 * float(snapshot.length[ego]))
         chain_e = frame.nearest_chain(s_e, d_e)
         n = rows.size
         ego_column, limits = np.arange(n) == 0, self.config.sim
@@ -257,15 +258,19 @@ class EpsilonPlanner:
 
     def _trajectory(self, frame: RoadFrame, sim: SimResult, rollouts: Rollouts, policy_of: np.ndarray,
                     weight_of: np.ndarray, winner: int, vehicles: Vehicles, now: float) -> Trajectory:
-        """The winner's ego states in its most likely scenario, as front-bumper states at absolute times."""
+        """The winner's ego states in its most likely scenario, as front-bumper states at absolute times every
+        ``output_step``, interpolated in the frame (interpolating world points would cut across the vertices
+        of a curved lane's polyline)."""
         candidates = np.flatnonzero(policy_of == winner)
         r = int(candidates[np.argmax(weight_of[candidates])])
-        s, d, h = sim.s[r, :, 0], sim.d[r, :, 0], sim.heading[r, :, 0]
-        x, y, heading = frame.to_world(s, d, h)
-        half = 0.5 * float(vehicles.length[0])
         self._curvature = float(sim.curvature[r, 1, 0])
-        return Trajectory(now + sim.t, x + half * np.cos(heading), y + half * np.sin(heading), heading,
-                          sim.speed[r, :, 0], np.concatenate([sim.accel[r, 1:, 0], sim.accel[r, -1:, 0]]))
+        step = self.config.output_step
+        t = np.arange(0.0, float(sim.t[-1]) + 0.5 * step, step)
+        accel = np.concatenate([sim.accel[r, 1:, 0], sim.accel[r, -1:, 0]])
+        s, d, h, speed, accel = (np.interp(t, sim.t, a) for a in (sim.s[r, :, 0], sim.d[r, :, 0],
+                                                                  sim.heading[r, :, 0], sim.speed[r, :, 0], accel))
+        x, y, heading = frame.bumper_at(s, d, h, 0.5 * float(vehicles.length[0]))
+        return Trajectory(now + t, x, y, heading, speed, accel)
 
 
 def _target(lat: Lat) -> int:

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..road.network import RoadNetwork
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.responsibility import OwedResponses
@@ -26,6 +25,7 @@ from .road_frame import RoadFrame
 
 ACCEL_MARGIN = 0.1  # [m/s²] kept inside every acceleration bound (the auditor's tolerance is 0.05)
 STOPPED = 0.05  # [m/s]
+COUNT_TOLERANCE = 1e-3  # [m/s] smaller lateral corrections are made but not counted as interventions
 NEIGHBOURHOOD = 150.0  # [m] other cars farther than this are ignored
 
 
@@ -46,9 +46,8 @@ class GuardCounts:
 
 
 class ProperResponseGuard:
-    def __init__(self, params: ParamResolver, step: float, network: RoadNetwork | None = None):
+    def __init__(self, params: ParamResolver, step: float):
         self.params = params
-        self.network = network
         self.dt = step
         self.counts = GuardCounts()
 
@@ -65,10 +64,12 @@ class ProperResponseGuard:
         me = int(np.flatnonzero(near == ego)[0])
         others = np.delete(np.arange(near.size), me)
         half = 0.5 * float(snapshot.length[ego])
-        s1, d1, h1 = frame.to_frame(planned.x - half * np.cos(planned.heading),
-                                    planned.y - half * np.sin(planned.heading), planned.heading)
+        # The ego's own centre from its bumper, as the planner placed it (RoadFrame.bumper_at).
+        s_c, d_c, h_c = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego], half)
+        s[me], d[me], h[me] = s_c[0], d_c[0], h_c[0]
+        s1, d1, h1 = frame.centre_of_bumper(planned.x, planned.y, planned.heading, half)
         s0, d0, v0 = float(s[me]), float(d[me]), float(snapshot.speed[ego])
-        s1, d1 = float(s1[0]), float(d1[0])
+        s1, d1, h1 = float(s1[0]), float(d1[0]), float(h1[0])
         accel = (planned.speed - v0) / dt
         t_next = snapshot.time + dt
 
@@ -106,14 +107,10 @@ class ProperResponseGuard:
         v1 = max(v0 + accel * dt, 0.0)
 
         # 3. Owed lateral responses: speed towards the other inside the envelope. The auditor measures the
-        # lateral speed of the front bumper across the ego's SUMO lane, so the envelope is checked on that
-        # measure and the correction applied to the planned lateral offset.
-        u_plan = (d1 - d0) / dt  # + = left
-        if np.any(owed.owed_lat) and self.network is not None:
-            lane = self.network.lane_indices(snapshot.lane_id[ego:ego + 1])
-            _, d_bumper, _ = self.network.frenet(np.repeat(lane, 2), np.array([snapshot.x[ego], planned.x]),
-                                                 np.array([snapshot.y[ego], planned.y]))
-            u_plan = (d_bumper[1] - d_bumper[0]) / dt  # the bumper's lateral speed
+        # lateral speed of the front bumper across the ego's SUMO lane (the frame's centre line), so the envelope
+        # is checked on the bumper's lateral speed and the correction applied to the bumper's offset.
+        bumper_d0 = float(d[me]) + half * np.sin(float(h[me]))
+        u_plan = (d1 + half * np.sin(h1) - bumper_d0) / dt  # + = left
         u_planned = u_plan
         if np.any(owed.owed_lat):
             side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
@@ -123,8 +120,8 @@ class ProperResponseGuard:
             bound = np.maximum(envelope - ACCEL_MARGIN * t_lat, 0.0)
             for sd, b in zip(side, bound):
                 if sd * u_plan > b:
+                    c.lat_owed += int(sd * u_plan > b + COUNT_TOLERANCE)
                     u_plan = sd * b
-                    c.lat_owed += 1
 
         # 4. No lateral motion into a pair that is longitudinally unsafe.
         if abs(u_plan) > 1e-9:
@@ -149,13 +146,12 @@ class ProperResponseGuard:
                 u_plan = 0.0
 
         lateral_changed = abs(u_plan - u_planned) > 1e-9
-        d_new = d1 + (u_plan - u_planned) * dt if lateral_changed else d1
         if v1 == planned.speed and not lateral_changed:
             return TrajectoryState(planned.x, planned.y, planned.heading, v1, (v1 - v0) / dt)
+        # The planned heading is kept; the centre moves by the guarded speed along it and the bumper's
+        # offset by the guarded lateral speed.
         travelled = 0.5 * (v0 + v1) * dt
-        s_new = s0 + travelled * np.cos(float(h[me])) if v0 + v1 > 0.0 else s0
-        heading_rel = np.arctan2(d_new - d0, max(s_new - s0, 1e-6)) if v1 > 0.1 else float(h[me])
-        x, y, heading = frame.to_world(np.array([s_new]), np.array([d_new]), np.array([heading_rel]))
-        heading = float(heading[0])
-        return TrajectoryState(float(x[0]) + half * np.cos(heading), float(y[0]) + half * np.sin(heading),
-                               heading, v1, (v1 - v0) / dt)
+        s_new = s0 + travelled * np.cos(h1) if v1 != planned.speed else s1
+        d_new = d1 + (u_plan - u_planned) * dt
+        x, y, heading = frame.bumper_at(np.array([s_new]), np.array([d_new]), np.array([h1]), half)
+        return TrajectoryState(float(x[0]), float(y[0]), float(heading[0]), v1, (v1 - v0) / dt)

@@ -112,15 +112,41 @@ class RoadFrame:
 
     def to_world(self, s: Any, d: Any, heading_rel: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Inverse of :meth:`to_frame`: (x, y, heading) of frame points."""
+        base, tangent = self._reference_at(s)
+        d = np.asarray(d, dtype=float)
+        x = base[..., 0] - tangent[..., 1] * d
+        y = base[..., 1] + tangent[..., 0] * d
+        return x, y, np.arctan2(tangent[..., 1], tangent[..., 0]) + np.asarray(heading_rel, dtype=float)
+
+    def bumper_at(self, s: Any, d: Any, heading_rel: Any, half_length: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, heading) of the front bumper of a vehicle whose centre is at frame (s, d) [m] with heading
+        ``heading_rel`` [rad] against the centre line, placed as SUMO places vehicles on a lane: the bumper's
+        lateral offset from the lane's polyline is d + half·sin(heading_rel), and its heading is the polyline
+        segment's plus ``heading_rel``. (Rotating a bumper by the vehicle's heading instead would move it
+        across the polyline at every vertex of a curve: a phantom lateral speed of ±v·Δangle/2.)"""
+        heading_rel = np.asarray(heading_rel, dtype=float)
+        return self.to_world(np.asarray(s, dtype=float) + half_length * np.cos(heading_rel),
+                             np.asarray(d, dtype=float) + half_length * np.sin(heading_rel), heading_rel)
+
+    def centre_of_bumper(self, x: Any, y: Any, heading: Any, half_length: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Inverse of :meth:`bumper_at`: the centre's (s, d, heading_rel) of a vehicle whose front bumper is at
+        (x, y) [m] with heading ``heading`` [rad]."""
+        s_f, d_f, _ = self.to_frame(x, y, 0.0)
+        _, tangent = self._reference_at(s_f)
+        rel = np.pi - np.mod(np.pi - (np.asarray(heading, dtype=float) -
+                                      np.arctan2(tangent[..., 1], tangent[..., 0])), 2.0 * np.pi)
+        return s_f - half_length * np.cos(rel), d_f - half_length * np.sin(rel), rel
+
+    def _reference_at(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Point [..., 2] and unit tangent [..., 2] of the frame's centre line at ``s`` (continued straight
+        beyond its ends)."""
         shapes, row = self.chains.shapes, int(self.chains.chain_of[CURRENT])
         n = int(shapes.count[row])
         along = np.asarray(s, dtype=float) + self.chains.start_s[row]
         cum, pts = shapes.cumulative[row, :n], shapes.points[row, :n]
         k = np.clip(np.searchsorted(cum, along, side="right") - 1, 0, n - 2)
         seg = pts[k + 1] - pts[k]
-        seg_len = np.maximum(np.linalg.norm(seg, axis=-1), 1e-9)
-        tangent = seg / seg_len[..., None]
-        base = pts[k] + tangent * (along - cum[k])[..., None]  # continues straight beyond the ends
-        x = base[..., 0] - tangent[..., 1] * d
-        y = base[..., 1] + tangent[..., 0] * d
-        return x, y, np.arctan2(tangent[..., 1], tangent[..., 0]) + np.asarray(heading_rel, dtype=float)
+        tangent = seg / np.maximum(np.linalg.norm(seg, axis=-1), 1e-9)[..., None]
+        return pts[k] + tangent * (along - cum[k])[..., None], tangent
