@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.key_vehicles import front_range, key_vehicles
+from sumo_rss.planner.epsilon import EpsilonPlanner
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import ParamResolver
 from sumo_rss.sim.snapshot import WorldSnapshot
 
 
@@ -65,3 +68,16 @@ def test_key_vehicles_by_lane_and_range():
     assert key.rows.tolist() == [1, 3, 4, 6]
     assert key.chain.tolist() == [CURRENT, CURRENT, LEFT, RIGHT]
     np.testing.assert_allclose(key.s, [100.0, -10.0, -50.0, 50.0])
+
+
+def test_rear_key_range_covers_the_rss_distance_of_fast_followers():
+    """A car 160 m behind a stopped ego at 30 m/s is beyond the 5·v = 150 m rear range but within its RSS distance
+    under ad_rss (30·1 + 3.5·1²/2 + 33.5²/(2·4) = 172.0 m bumper gap): it is key once the reach is given."""
+    net = _net("highway")
+    chains = lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1", "hw2"]))
+    snapshot = _snapshot([400, 240], [-5.25, -1.75], [0.0, 30.0])
+    frame = RoadFrame.build(chains)
+    assert key_vehicles(snapshot, 0, frame).rows.tolist() == []
+    reach = EpsilonPlanner._rear_reach(snapshot, 0, ParamResolver().arrays(snapshot))
+    assert reach[1] == pytest.approx(30.0 + 1.75 + 33.5 ** 2 / 8.0 + 4.5)
+    assert key_vehicles(snapshot, 0, frame, reach).rows.tolist() == [1]

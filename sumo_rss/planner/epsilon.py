@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
 from ..road.network import RoadNetwork
@@ -102,8 +103,9 @@ class EpsilonPlanner:
         lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
         now = snapshot.time
         self.manager.update_context(now, lane)
-        key = key_vehicles(snapshot, ego, frame)
-        vehicles, params = self._vehicles(snapshot, ego, frame, key)
+        all_params = self.params.arrays(snapshot)
+        key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
+        vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
         v_ref = self._reference_speed(frame, v_ego)
         t_scene = time.perf_counter()
@@ -166,8 +168,17 @@ class EpsilonPlanner:
             self._frames[key] = frame
         return frame
 
-    def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame,
-                  key: KeyVehicles) -> tuple[Vehicles, RssParamArrays]:
+    @staticmethod
+    def _rear_reach(snapshot: WorldSnapshot, ego: int, params: RssParamArrays) -> np.ndarray:
+        """[m] per snapshot row: the RSS distance that car needs behind the ego (bumper gap) plus both half
+        lengths, i.e. how far behind the ego's centre it still matters."""
+        p_ego = params.take(np.full(len(snapshot), ego))
+        gap = formulas.lon_safe_distance_same_dir(snapshot.speed, np.full(len(snapshot), snapshot.speed[ego]),
+                                                  params, p_ego)
+        return gap + 0.5 * (snapshot.length + snapshot.length[ego])
+
+    def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, key: KeyVehicles,
+                  all_params: RssParamArrays) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
         s_e, d_e, h_e = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
                                                0.5 * float(snapshot.length[ego]))
@@ -184,7 +195,7 @@ class EpsilonPlanner:
                           np.where(ego_column, limits.ego_limits.max_accel, limits.agent_limits.max_accel)),
             curvature=curvature, length=snapshot.length[rows].astype(float), width=snapshot.width[rows].astype(float),
             chain=np.concatenate([chain_e, key.chain]).astype(int))
-        params = self.params.arrays(snapshot).take(rows)
+        params = all_params.take(rows)
         return vehicles, params
 
     def _reference_speed(self, frame: RoadFrame, v: float) -> float:
@@ -214,8 +225,10 @@ class EpsilonPlanner:
 
     def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
         chain = key.chain
-        has_left = (chain < LEFT) & frame.exists[np.minimum(chain + 1, LEFT)]
-        has_right = (chain > RIGHT) & frame.exists[np.maximum(chain - 1, RIGHT)]
+        # Nobody changes into a lane that ends ahead of them (an acceleration lane seen from the motorway).
+        enterable = frame.exists & ~np.isfinite(frame.end_s)
+        has_left = (chain < LEFT) & enterable[np.minimum(chain + 1, LEFT)]
+        has_right = (chain > RIGHT) & enterable[np.maximum(chain - 1, RIGHT)]
         probs = intention_probabilities(key.d, snapshot.lat_speed[key.rows], has_left, has_right)
         # An agent whose lane ends ahead will change: towards the lane that goes on, surer the nearer the end.
         to_end = frame.end_s[chain] - key.frame_s

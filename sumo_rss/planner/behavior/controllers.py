@@ -132,15 +132,13 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     x, y, th = state.x.astype(float), state.y.astype(float), state.heading.astype(float)
     dv, ds = (v_new - v) / dt, (steer_new - steer) / dt
 
-    def deriv(t: float, th_: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        vt, st = v + dv * t, steer + ds * t
-        return vt * np.cos(th_), vt * np.sin(th_), vt * np.tan(st) / L
-
-    k1 = deriv(0.0, th)
-    k2 = deriv(dt / 2, th + dt / 2 * k1[2])
-    k3 = deriv(dt / 2, th + dt / 2 * k2[2])
-    k4 = deriv(dt, th + dt * k3[2])
-    x = x + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-    y = y + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    th = th + dt / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+    # The yaw rate depends on time only, so it is evaluated once per RK4 stage time (0, dt/2, dt).
+    v_mid, v_end = v + dv * (dt / 2), v_new
+    w0, w_mid, w_end = v * np.tan(steer) / L, v_mid * np.tan(steer + ds * (dt / 2)) / L, v_end * np.tan(steer_new) / L
+    th2 = th + dt / 2 * w0
+    th3 = th + dt / 2 * w_mid
+    th4 = th + dt * w_mid
+    x = x + dt / 6 * (v * np.cos(th) + 2 * v_mid * (np.cos(th2) + np.cos(th3)) + v_end * np.cos(th4))
+    y = y + dt / 6 * (v * np.sin(th) + 2 * v_mid * (np.sin(th2) + np.sin(th3)) + v_end * np.sin(th4))
+    th = th + dt / 6 * (w0 + 4 * w_mid + w_end)
     return BicycleState(x, y, _wrap(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)

@@ -70,13 +70,15 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     the frame (a ramp and the motorway) do not read as cars driving at each other."""
     s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
     ds = s[..., 1:] - s[..., :1]
-    v_lat = v * np.sin(h - frame.slope(frame.nearest_chain(s, d), s))
+    v_lat = v * np.sin(h - frame.slope(sim.chain, s))
     ego_left = d[..., :1] >= d[..., 1:]
     lat_gap = np.abs(d[..., 1:] - d[..., :1]) - 0.5 * (width[0] + width[1:])
-    v_left = np.where(ego_left, v_lat[..., :1], v_lat[..., 1:])
-    v_right = np.where(ego_left, v_lat[..., 1:], v_lat[..., :1])
-    lat_min = formulas.lat_safe_distance(v_left, v_right, _pick(ego_left, rss_ego, rss_agents),
-                                         _pick(~ego_left, rss_ego, rss_agents))
+    # Each car's lateral speed towards the other, then its worst-case lateral reach (rss.md, Def. 4).
+    towards_ego = np.where(ego_left, -v_lat[..., :1], v_lat[..., :1])
+    towards_agent = np.where(ego_left, v_lat[..., 1:], -v_lat[..., 1:])
+    lat_min = formulas.combine_lateral(formulas.lateral_reach(towards_ego, rss_ego),
+                                       formulas.lateral_reach(towards_agent, rss_agents),
+                                       rss_ego.lat_fluctuation_margin, rss_agents.lat_fluctuation_margin)
     lat_unsafe = ~formulas.is_safe_distance(lat_gap, lat_min)
     gap = np.abs(ds) - 0.5 * (length[0] + length[1:])
     v_e, v_o = v[..., :1], v[..., 1:]
@@ -91,12 +93,6 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     fast = w.rss_over_coeff * v_e * 10.0 ** (w.rss_over_power * np.minimum(np.abs(v_e - v_up), w.rss_max_excess))
     slow = w.rss_lack_coeff * v_e * 10.0 ** (w.rss_lack_power * np.minimum(np.abs(v_e - v_low), w.rss_max_excess))
     return np.where(too_fast, fast, 0.0).sum(axis=-1) + np.where(too_slow, slow, 0.0).sum(axis=-1)
-
-
-def _pick(ego_side: np.ndarray, rss_ego: Any, rss_agents: Any) -> Any:
-    """Parameters of the car on one side: the ego's where ``ego_side``, else the agent's (as arrays)."""
-    return type(rss_agents)(**{name: np.where(ego_side, getattr(rss_ego, name), getattr(rss_agents, name))
-                               for name in rss_agents.__dataclass_fields__})
 
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,

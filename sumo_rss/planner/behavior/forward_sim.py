@@ -101,6 +101,7 @@ class SimResult:
     ego_lead_gap: np.ndarray  # [R, T+1] ego's leader on its tracked lane: bumper gap [m] (inf: none)
     ego_lead_speed: np.ndarray  # [R, T+1]
     barrier_steps: np.ndarray  # [R] steps the virtual barrier held the ego back
+    chain: np.ndarray  # [R, T+1, n] int: the lane chain each vehicle is in at each sample
 
 
 def step_times(durations: tuple[float, ...], sim_step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -128,21 +129,28 @@ def _per_vehicle(ego: Any, agent: Any, n: int) -> Any:
 
 def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any, bh: Any, bl: Any,
                   bw: Any) -> np.ndarray:
-    """Whether oriented boxes (centre, heading, length, width) overlap: separating-axis test, broadcast (only
-    where the bounding circles meet)."""
+    """Whether oriented boxes (centre, heading, length, width) overlap, broadcast: a separating-axis test on the
+    pairs whose axis-aligned bounding boxes meet (the others cannot overlap)."""
     dx, dy = np.asarray(bx) - ax, np.asarray(by) - ay
-    reach = 0.5 * (np.hypot(al, aw) + np.hypot(bl, bw))
-    shape = np.broadcast(dx, dy, ah, bh).shape
-    if not np.any(dx * dx + dy * dy < reach * reach):
-        return np.zeros(shape, dtype=bool)
-    separated = np.zeros(shape, dtype=bool)
-    for phi in (ah, np.asarray(ah) + np.pi / 2, bh, np.asarray(bh) + np.pi / 2):
+    shape = np.broadcast(dx, dy, ah, bh, al, aw, bl, bw).shape
+    overlap = np.zeros(shape, dtype=bool)
+    (ca, sa), (cb, sb) = (np.abs(np.cos(ah)), np.abs(np.sin(ah))), (np.abs(np.cos(bh)), np.abs(np.sin(bh)))
+    close = (np.abs(dx) < 0.5 * (al * ca + aw * sa + bl * cb + bw * sb)) & \
+        (np.abs(dy) < 0.5 * (al * sa + aw * ca + bl * sb + bw * cb))
+    close = np.broadcast_to(close, shape)
+    if not np.any(close):
+        return overlap
+    dx, dy, ah, al, aw, bh, bl, bw = (np.broadcast_to(np.asarray(a, dtype=float), shape)[close]
+                                      for a in (dx, dy, ah, al, aw, bh, bl, bw))
+    separated = np.zeros(dx.shape, dtype=bool)
+    for phi in (ah, ah + np.pi / 2, bh, bh + np.pi / 2):
         c, s = np.cos(phi), np.sin(phi)
         dist = np.abs(dx * c + dy * s)
         ra = 0.5 * al * np.abs(np.cos(ah - phi)) + 0.5 * aw * np.abs(np.sin(ah - phi))
         rb = 0.5 * bl * np.abs(np.cos(bh - phi)) + 0.5 * bw * np.abs(np.sin(bh - phi))
         separated |= dist > ra + rb
-    return ~separated
+    overlap[close] = ~separated
+    return overlap
 
 
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
@@ -165,6 +173,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     v0[:, 0] = rollouts.ego_v0
     tracked = rollouts.agent_chain.copy()
     not_self = ~np.eye(n, dtype=bool)[None, :, :]
+    rollout_column = np.arange(R)[:, None, None] * n + np.arange(n)[None, None, :]  # flat [r, j] in [3, R, n]
 
     def tile(a: np.ndarray) -> np.ndarray:
         return np.tile(np.asarray(a, dtype=float), (R, 1))
@@ -174,6 +183,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     shape = (R, n_steps + 1, n)
     out = {k: np.zeros(shape) for k in ("s", "d", "heading", "speed", "accel", "curvature")}
     lead_gap, lead_speed = np.full((R, n_steps + 1), np.inf), np.zeros((R, n_steps + 1))
+    chain_out = np.zeros(shape, dtype=np.intp)
     valid = np.ones(R, dtype=bool)
     barrier_steps = np.zeros(R, dtype=int)
     gap_front = gap_rear = np.full(R, -1)
@@ -188,6 +198,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         valid &= ~np.any(hit, axis=1)
         centres = frame.centres_at(s)  # [3, R, n]
         now_chain = frame.chain_of_offsets(centres, s, d)
+        chain_out[:, k] = now_chain
         if k < n_steps and (layer < 0 or k >= layer_end[layer]):
             layer += 1
             tracked[:, 0] = rollouts.ego_chain[:, layer]
@@ -195,10 +206,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # Leaders on the tracked lane and on the lane each vehicle is in now.
         ds = s[:, None, :] - s[:, :, None]  # [R, i, j] = s_j - s_i
         # centre_x[r, i, j]: where the lane vehicle i tracks (is in) lies at vehicle j's position.
-        by_rollout = centres.transpose(1, 0, 2)  # [R, 3, n]
-        r_idx, j_idx = np.arange(R)[:, None, None], np.arange(n)[None, None, :]
-        centre_tracked = by_rollout[r_idx, tracked[:, :, None], j_idx]
-        centre_now = by_rollout[r_idx, now_chain[:, :, None], j_idx]
+        flat_centres = centres.ravel()
+        centre_tracked = flat_centres.take(tracked[:, :, None] * (R * n) + rollout_column)
+        centre_now = flat_centres.take(now_chain[:, :, None] * (R * n) + rollout_column)
         ahead = (ds > 0.0) & not_self & (ds < LEADER_RANGE + length[None, None, :])
         gap_all = ds - 0.5 * (length[None, :, None] + length[None, None, :])
         band_t = ahead & (np.abs(d[:, None, :] - centre_tracked) < radius[None, :, None])
@@ -242,7 +252,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         state = bicycle_step(state, speed_cmd, steer, limits, dt)
     return SimResult(t, layer_end, out["s"], out["d"], out["heading"], out["speed"], out["accel"],
-                     out["curvature"], valid, lead_gap, lead_speed, barrier_steps)
+                     out["curvature"], valid, lead_gap, lead_speed, barrier_steps, chain_out)
 
 
 def _nearest(gap: np.ndarray, mask: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

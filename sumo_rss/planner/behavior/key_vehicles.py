@@ -10,7 +10,7 @@ from ...sim.snapshot import WorldSnapshot
 from ..road_frame import RoadFrame
 
 MAX_LANE_OFFSET = 2.0  # [m] farther from every key lane's centre line, a vehicle is on none of them
-SEARCH_RADIUS = 200.0  # [m] Euclidean pre-filter around the ego (R_f ≤ 170 m, rear range ≤ 5·v)
+SEARCH_RADIUS = 250.0  # [m] Euclidean pre-filter around the ego (R_f ≤ 170 m; rear range: 5·v or the RSS reach)
 
 
 def front_range(v_ego: float) -> float:
@@ -31,8 +31,11 @@ class KeyVehicles:
     heading: np.ndarray  # heading relative to the frame's centre line [rad]
 
 
-def key_vehicles(snapshot: WorldSnapshot, ego_row: int, frame: RoadFrame) -> KeyVehicles:
-    """Vehicles on a key lane within R_f ahead of the ego or max(20, 5·|v|) behind it."""
+def key_vehicles(snapshot: WorldSnapshot, ego_row: int, frame: RoadFrame,
+                 rear_reach: np.ndarray | None = None) -> KeyVehicles:
+    """Vehicles on a key lane within R_f ahead of the ego or max(20, 5·|v|, ``rear_reach``) behind it.
+    ``rear_reach[row]`` [m] (per snapshot row): how far behind the ego that car could still be RSS-unsafe as
+    its follower — a gap the ego merges into is judged on every car that could make it unsafe."""
     cx, cy = snapshot.centres()
     near = np.flatnonzero(np.hypot(cx - cx[ego_row], cy - cy[ego_row]) <= SEARCH_RADIUS)
     s, d, rel = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
@@ -43,7 +46,10 @@ def key_vehicles(snapshot: WorldSnapshot, ego_row: int, frame: RoadFrame) -> Key
     speed = snapshot.speed[near]
     on_lane = np.abs(d_own) <= MAX_LANE_OFFSET
     ahead = (dist >= 0.0) & (dist < front_range(float(snapshot.speed[ego_row])))
-    behind = (dist < 0.0) & (-dist < np.maximum(20.0, 5.0 * np.abs(speed)))
+    reach = np.maximum(20.0, 5.0 * np.abs(speed))
+    if rear_reach is not None:
+        reach = np.maximum(reach, rear_reach[near])
+    behind = (dist < 0.0) & (-dist < reach)
     key = on_lane & (ahead | behind) & (near != ego_row)
     idx = np.flatnonzero(key)
     order = idx[np.argsort(near[idx], kind="stable")]
