@@ -5,11 +5,13 @@ Acceptance (issue 5): no collision involving the ego, the auditor never finds th
 changes lanes on the highway, and from the ramp it merges onto the motorway before the acceleration lane ends.
 Runs are cut short (highway: 60 s of planner driving; merge: until 240 s).
 
-The full 20-seed acceptance runs take ~20 CPU minutes and do **not** all pass yet (see issue 5's note: one-step
-lateral-speed spikes make the ego responsible in some seeds; some merges take longer than 240 s; no completed
-lane change on the dense highway), so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``) and are
-marked xfail. The suite always runs a 2-seed smoke version asserting what holds: no ego collision, the planner
-drives every step, the ego gets onto the acceleration lane and never past its end.
+The 20-seed runs take ~20 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``; each
+scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) is asserted
+strictly. Lane changes and merging within 240 s are xfail: under ad_rss a change needs an RSS-safe gap of
+~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's note), and the ego then keeps
+its lane or waits at the end of the acceleration lane. The suite always runs a 2-seed smoke version: no ego
+collision, never responsible, the planner drives every step, the ego gets onto the acceleration lane and never
+past its end.
 """
 from __future__ import annotations
 
@@ -34,7 +36,8 @@ SMOKE_SEEDS = range(2)
 ACCELERATION_LANE = "mw_merge_0"
 acceptance = pytest.mark.skipif(os.environ.get("SUMO_RSS_ACCEPTANCE") != "1",
                                 reason="20-seed acceptance runs: set SUMO_RSS_ACCEPTANCE=1 (make acceptance)")
-not_met_yet = pytest.mark.xfail(reason="issue 5 acceptance not met yet (see the issue note)", strict=False)
+not_met_yet = pytest.mark.xfail(reason="issue 5: dense traffic rarely offers an RSS-safe gap under ad_rss (see the "
+                                       "issue note)", strict=False)
 
 
 def _epsilon_batch(name: str, duration: float, out: Path, seeds: range) -> list[tuple[Task, Path]]:
@@ -69,34 +72,53 @@ def _trace(folder: Path) -> list[dict]:
 
 
 @pytest.mark.slow
-def test_smoke_epsilon_ego_drives_without_collision(tmp_path):
-    _assert_safe(_epsilon_batch("highway_dense", 60.0, tmp_path / "highway", SMOKE_SEEDS), never_responsible=False)
+def test_smoke_epsilon_ego_drives_safely(tmp_path):
+    _assert_safe(_epsilon_batch("highway_dense", 60.0, tmp_path / "highway", SMOKE_SEEDS))
     runs = _epsilon_batch("merge_onramp", 80.0, tmp_path / "merge", SMOKE_SEEDS)
-    _assert_safe(runs, never_responsible=False)
+    _assert_safe(runs)
     _assert_on_acceleration_lane_not_past_its_end(runs)
+
+
+@pytest.fixture(scope="module")
+def highway_runs(tmp_path_factory):
+    return _epsilon_batch("highway_dense", 90.0, tmp_path_factory.mktemp("highway"), ACCEPTANCE_SEEDS)
+
+
+@pytest.fixture(scope="module")
+def merge_runs(tmp_path_factory):
+    return _epsilon_batch("merge_onramp", 240.0, tmp_path_factory.mktemp("merge"), ACCEPTANCE_SEEDS)
+
+
+@acceptance
+@pytest.mark.slow
+def test_epsilon_ego_on_dense_highway_never_collides_and_is_never_responsible(highway_runs):
+    _assert_safe(highway_runs)
+
+
+@acceptance
+@pytest.mark.slow
+def test_epsilon_ego_from_the_ramp_never_collides_is_never_responsible_and_stays_on_the_road(merge_runs):
+    _assert_safe(merge_runs)
+    _assert_on_acceleration_lane_not_past_its_end(merge_runs)
 
 
 @acceptance
 @not_met_yet
 @pytest.mark.slow
-def test_epsilon_ego_on_dense_highway_is_never_responsible_and_changes_lanes(tmp_path):
-    runs = _epsilon_batch("highway_dense", 90.0, tmp_path, ACCEPTANCE_SEEDS)
-    summaries = _assert_safe(runs)
+def test_epsilon_ego_changes_lanes_on_the_dense_highway(highway_runs):
+    summaries = [json.loads((folder / "summary.json").read_text()) for _, folder in highway_runs]
     # Lane changes: completed contexts, and the ego's lane index changes in its trace.
     completed = sum(s["planner"]["lane_changes_completed"] for s in summaries)
     lane_switches = sum(sum(a["lane_id"].rsplit("_", 1)[1] != b["lane_id"].rsplit("_", 1)[1]
-                            for a, b in zip(trace, trace[1:])) for trace in (_trace(f) for _, f in runs))
+                            for a, b in zip(trace, trace[1:])) for trace in (_trace(f) for _, f in highway_runs))
     assert completed > 0 and lane_switches > 0
 
 
 @acceptance
 @not_met_yet
 @pytest.mark.slow
-def test_epsilon_ego_merges_from_the_ramp_before_the_lane_ends(tmp_path):
-    runs = _epsilon_batch("merge_onramp", 240.0, tmp_path, ACCEPTANCE_SEEDS)
-    _assert_safe(runs)
-    _assert_on_acceleration_lane_not_past_its_end(runs)
-    for task, folder in runs:
+def test_epsilon_ego_merges_from_the_ramp_before_the_lane_ends(merge_runs):
+    for task, folder in merge_runs:
         assert _trace(folder)[-1]["lane_id"] not in ("ramp_0", ACCELERATION_LANE), f"{task.run_id}: never merged"
 
 
