@@ -172,9 +172,8 @@ class EpsilonPlanner:
     def _rear_reach(snapshot: WorldSnapshot, ego: int, params: RssParamArrays) -> np.ndarray:
         """[m] per snapshot row: the RSS distance that car needs behind the ego (bumper gap) plus both half
         lengths, i.e. how far behind the ego's centre it still matters."""
-        p_ego = params.take(np.full(len(snapshot), ego))
-        gap = formulas.lon_safe_distance_same_dir(snapshot.speed, np.full(len(snapshot), snapshot.speed[ego]),
-                                                  params, p_ego)
+        gap = formulas.lon_safe_distance_same_dir(snapshot.speed, snapshot.speed[ego], params,
+                                                  params.take(np.array([ego])))
         return gap + 0.5 * (snapshot.length + snapshot.length[ego])
 
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, key: KeyVehicles,

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ..angles import wrap_angle
 from .lanes import CURRENT, LaneChains
 
 GRID_STEP = 1.0  # [m] spacing of the offset profiles
@@ -107,7 +108,7 @@ class RoadFrame:
         x, y = np.atleast_1d(np.asarray(x, dtype=float)), np.atleast_1d(np.asarray(y, dtype=float))
         row = int(self.chains.chain_of[CURRENT])
         s, d, lane_heading = self.chains.shapes.project(np.full(x.size, row), x, y)
-        rel = np.pi - np.mod(np.pi - (np.asarray(heading, dtype=float) - lane_heading), 2.0 * np.pi)
+        rel = wrap_angle(np.asarray(heading, dtype=float) - lane_heading)
         return s - self.chains.start_s[row], d, rel
 
     def to_world(self, s: Any, d: Any, heading_rel: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -135,8 +136,7 @@ class RoadFrame:
         (x, y) [m] with heading ``heading`` [rad]."""
         s_f, d_f, _ = self.to_frame(x, y, 0.0)
         _, tangent = self._reference_at(s_f)
-        rel = np.pi - np.mod(np.pi - (np.asarray(heading, dtype=float) -
-                                      np.arctan2(tangent[..., 1], tangent[..., 0])), 2.0 * np.pi)
+        rel = wrap_angle(np.asarray(heading, dtype=float) - np.arctan2(tangent[..., 1], tangent[..., 0]))
         return s_f - half_length * np.cos(rel), d_f - half_length * np.sin(rel), rel
 
     def _reference_at(self, s: Any) -> tuple[np.ndarray, np.ndarray]:

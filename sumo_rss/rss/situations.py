@@ -17,6 +17,7 @@ from enum import Enum
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..angles import wrap_angle
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import (combine_lateral, combine_opposite, combine_same_dir, is_safe_distance, lateral_reach, lon_reach,
@@ -133,10 +134,6 @@ class PairSituations:
         rules = np.concatenate([p.safe_rules for p in parts])
         return PairSituations(**fields, rules=rules, priority=column("priority", 0, np.int8),
                               area=column("area", "", object))
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 
 def _half_extents(length: np.ndarray, width: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -259,7 +256,7 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
         oc = other[cross]
         s_x, d_x, foot_heading = network.frenet(lane_r[cross], frame.cx[oc], frame.cy[oc],
                                                 _cross_edge_hint(frame, ref[cross], oc, network))
-        theta = _wrap(frame.rel_heading[oc] + frame.lane_heading[oc] - foot_heading)
+        theta = wrap_angle(frame.rel_heading[oc] + frame.lane_heading[oc] - foot_heading)
         s_o[cross], d_o[cross] = s_x, d_x
         v_lon_o[cross], v_lat_o[cross] = frame.speed[oc] * np.cos(theta), frame.speed[oc] * np.sin(theta)
         half_lon_o[cross], half_lat_o[cross] = _half_extents(snapshot.length[oc], snapshot.width[oc], theta)

@@ -10,14 +10,15 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..angles import wrap_angle
+
 EGO_CLASS = "ego"
 BACKGROUND_CLASS = "background"
 
 
 def compass_deg_to_heading(angle_deg: np.ndarray | float) -> np.ndarray | float:
     """SUMO angle (degrees, 0 = north, clockwise) → heading (rad, math convention, 0 = east, in (-π, π])."""
-    heading = np.radians(90.0 - np.asarray(angle_deg, dtype=float))
-    return np.pi - np.mod(np.pi - heading, 2.0 * np.pi)
+    return wrap_angle(np.radians(90.0 - np.asarray(angle_deg, dtype=float)))
 
 
 def heading_to_compass_deg(heading: float) -> float:

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from ...angles import wrap_angle
+
 V0_STOP = 1e-3  # [m/s] a desired speed below this means "stop"
 
 
@@ -44,10 +46,6 @@ class VehicleLimits:
     lat_jerk: float = 1.8  # [m/s³]
     max_steer: float = 0.785  # [rad]
     max_steer_rate: float = 0.39  # [rad/s]
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 
 def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np.ndarray:
@@ -92,7 +90,7 @@ def pure_pursuit_steer(x: Any, y: Any, heading: Any, target_x: Any, target_y: An
     """Steering angle [rad] towards the target point: δ = atan2(2·L·sin α, ‖target − position‖), α the bearing
     of the target relative to the heading (rear-axle reference)."""
     dx, dy = np.asarray(target_x) - np.asarray(x), np.asarray(target_y) - np.asarray(y)
-    alpha = _wrap(np.arctan2(dy, dx) - np.asarray(heading))
+    alpha = wrap_angle(np.arctan2(dy, dx) - np.asarray(heading))
     return np.arctan2(2.0 * wheelbase * np.sin(alpha), np.hypot(dx, dy))
 
 
@@ -126,7 +124,7 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     a_lat = np.clip(a_lat_now + np.clip((a_lat_des - a_lat_now) / dt, -limits.lat_jerk, limits.lat_jerk) * dt,
                     -limits.lat_accel, limits.lat_accel)
     steer_target = np.arctan(a_lat * L / np.maximum(v_new * v_new, 0.01))
-    rate = np.clip(_wrap(steer_target - steer) / dt, -limits.max_steer_rate, limits.max_steer_rate)
+    rate = np.clip(wrap_angle(steer_target - steer) / dt, -limits.max_steer_rate, limits.max_steer_rate)
     steer_new = steer + rate * dt
     # Integrate ẋ = v cos θ, ẏ = v sin θ, θ̇ = v tan δ / L with v and δ linear over the step (one RK4 step).
     x, y, th = state.x.astype(float), state.y.astype(float), state.heading.astype(float)
@@ -141,4 +139,4 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     x = x + dt / 6 * (v * np.cos(th) + 2 * v_mid * (np.cos(th2) + np.cos(th3)) + v_end * np.cos(th4))
     y = y + dt / 6 * (v * np.sin(th) + 2 * v_mid * (np.sin(th2) + np.sin(th3)) + v_end * np.sin(th4))
     th = th + dt / 6 * (w0 + 4 * w_mid + w_end)
-    return BicycleState(x, y, _wrap(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)
+    return BicycleState(x, y, wrap_angle(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)
