@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, simulate, \
-    step_times
+from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
+    prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
@@ -166,3 +166,64 @@ def test_free_road_prefers_keeping_the_lane_and_accelerating(highway):
     assert result.policy == "A:KKKKK" and not result.backup
     assert result.agents == 0 and result.scenarios == 1
     assert result.trajectory.speed[-1] > 20.5
+
+
+def test_shared_prefixes_simulate_like_separate_rollouts(highway):
+    """The 9 lateral sequences of an ongoing keep share their first layers: simulated once per distinct prefix
+    (1, 3, 5, 7, 9 per layer), every rollout equals its own separate simulation."""
+    _, frame = highway
+    layers = 5
+    sequences = [[CURRENT] * layers]
+    for h in range(1, layers):
+        sequences += [[CURRENT] * h + [LEFT] * (layers - h), [CURRENT] * h + [RIGHT] * (layers - h)]
+    ego_chain = np.array(sequences)
+    R = len(sequences)
+    # A slower leader in the ego's lane; the neighbour lanes' cars far enough ahead for RSS-safe changes.
+    vehicles = _vehicles([100.0, 125.0, 330.0, 350.0], [0.0, 0.0, 3.5, -3.5], [22.0, 18.0, 25.0, 20.0],
+                         chain=[CURRENT, CURRENT, LEFT, RIGHT])
+    agents = np.tile([0, CURRENT, LEFT, RIGHT], (R, 1))
+    rollouts = Rollouts(ego_chain, np.full(R, 25.0), np.ones(R), np.zeros(R, bool), 4.2, agents,
+                        np.array([0.0, 18.0, 25.0, 20.0]))
+    assert [first.size for first, _, _ in prefix_tree(rollouts)] == [1, 3, 5, 7, 9]
+    p = RssParamArrays.stack([RssParams()] * 4)
+    durations = (0.6, 1.0, 1.0, 1.0, 1.0)
+    together = simulate(frame, vehicles, rollouts, durations, SimSettings(), RssParams(), p)
+    for r in range(R):
+        single = Rollouts(ego_chain[r:r + 1], np.full(1, 25.0), np.ones(1), np.zeros(1, bool), 4.2, agents[r:r + 1],
+                          rollouts.agent_v0)
+        alone = simulate(frame, vehicles, single, durations, SimSettings(), RssParams(), p)
+        for name in ("s", "d", "heading", "speed", "ego_lead_gap"):
+            np.testing.assert_allclose(getattr(together, name)[r], getattr(alone, name)[0], atol=1e-9, rtol=0)
+        assert together.valid[r] == alone.valid[0] and np.array_equal(together.chain[r], alone.chain[0])
+    # The lane changes do happen in the rollouts that ask for them.
+    assert together.d[1, -1, 0] > 1.75 and together.d[2, -1, 0] < -1.75
+
+
+def test_leader_search_matches_the_pairwise_definition():
+    """Sorted leader search = the nearest car whose centre is ahead (within 120 m + its length) and inside the
+    follower's band of the lane it looks at (ego radius 2.2 m, agents 1.25 m), on random traffic in 3 lanes."""
+    rng = np.random.default_rng(7)
+    G, n = 12, 15
+    lane = rng.integers(0, 3, (G, n))
+    s = np.sort(rng.uniform(0.0, 400.0, (G, n)), axis=1)  # spread out: no two cars overlap in a lane
+    s += np.arange(n) * 13.0
+    d = (lane - 1) * 3.5 + rng.uniform(-1.5, 1.5, (G, n))
+    v = rng.uniform(0.0, 30.0, (G, n))
+    length = rng.choice([4.5, 6.0, 12.0], n)
+    centres = np.broadcast_to(np.array([-3.5, 0.0, 3.5])[:, None, None], (3, G, n))
+    looks = np.stack([rng.integers(0, 3, (G, n)), lane])
+    radius_class = (np.arange(n) == 0).astype(int)
+    gaps, speeds = leaders_ahead(s, d, v, centres, looks, radius_class, length, (1.25, 2.2))
+    radius = np.where(radius_class == 1, 2.2, 1.25)
+    for m in range(2):
+        for r in range(G):
+            for i in range(n):
+                ds = s[r] - s[r, i]
+                band = np.abs(d[r] - centres[looks[m, r, i], r]) < radius[i]
+                ok = (ds > 0.0) & (ds < 120.0 + length) & band
+                if not ok.any():
+                    assert np.isinf(gaps[m, r, i])
+                    continue
+                gap = np.where(ok, ds - 0.5 * (length[i] + length), np.inf)
+                j = int(np.argmin(gap))
+                assert gaps[m, r, i] == pytest.approx(gap[j]) and speeds[m, r, i] == v[r, j]

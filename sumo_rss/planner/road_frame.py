@@ -31,6 +31,7 @@ class RoadFrame:
     end_s: np.ndarray  # [3]
     exists: np.ndarray  # [3] bool
     speed_limit: np.ndarray  # [3] m/s
+    slope_grid: np.ndarray  # [3, G-1] heading [rad] of each chain's centre line between grid points
 
     @classmethod
     def build(cls, chains: LaneChains) -> RoadFrame:
@@ -65,7 +66,8 @@ class RoadFrame:
             extent[which] = (s[0], s[-1])
             if chains.dead_end[row]:
                 end_s[which] = s[-1]
-        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits)
+        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits,
+                   np.arctan(np.diff(centre, axis=1) / GRID_STEP))
 
     def centre_d(self, chain: Any, s: Any) -> np.ndarray:
         """d [m] of the centre line of ``chain`` (RIGHT/CURRENT/LEFT, any array shape) at frame positions ``s``."""
@@ -94,9 +96,9 @@ class RoadFrame:
 
     def slope(self, chain: Any, s: Any) -> np.ndarray:
         """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
-        chain, s = np.broadcast_arrays(np.asarray(chain, dtype=int), np.asarray(s, dtype=float))
-        i = np.clip(((s - self.s0) / GRID_STEP).astype(int), 0, self.centre.shape[1] - 2)
-        return np.arctan((self.centre[chain, i + 1] - self.centre[chain, i]) / GRID_STEP)
+        cells = self.slope_grid.shape[1]
+        i = np.clip(((np.asarray(s, dtype=float) - self.s0) / GRID_STEP).astype(np.intp), 0, cells - 1)
+        return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * cells + i)
 
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""

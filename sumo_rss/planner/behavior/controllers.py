@@ -20,6 +20,11 @@ from ...angles import wrap_angle
 V0_STOP = 1e-3  # [m/s] a desired speed below this means "stop"
 
 
+def clamp(x: Any, low: Any, high: Any) -> np.ndarray:
+    """``np.clip`` with less call overhead (these run many times per planning cycle on small arrays)."""
+    return np.minimum(np.maximum(x, low), high)
+
+
 @dataclass(frozen=True)
 class IdmParams:
     """Car-following parameters (epsilon.md §3.1: ego s0 2.0, T 1.0, a 1.0; agents s0 1.0, T 0.5, a 2.0)."""
@@ -51,7 +56,7 @@ class VehicleLimits:
 def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np.ndarray:
     """ACC acceleration [m/s²] at speed ``v`` with desired speed ``v0``, a leader at ``v_lead`` (clamped ≥ 0) and
     net bumper gap ``gap`` [m] (use a large gap and v_lead = v for a free road). Clipped to [−hard_brake, a]."""
-    v, v0, v_lead, gap = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (v, v0, v_lead, gap)))
+    v, v0 = np.asarray(v, dtype=float), np.asarray(v0, dtype=float)
     v_lead = np.maximum(v_lead, 0.0)
     a, b, delta = p.accel, p.comfort_brake, p.exponent
     s_net = np.maximum(gap, 1e-3)
@@ -67,11 +72,11 @@ def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np
                          np.where(np.abs(a_free) > 1e-12, a_free * (1.0 - z ** (2.0 * a / a_free)), 0.0))
     above = np.where(z >= 1.0, a_free + a * (1.0 - z * z), a_free)
     # "Stop" (v0 = 0) is always the decelerating regime: the below-v0 formula assumes a_free > 0.
-    a_iidm = np.clip(np.where((v <= v0_safe) & ~stop, below, above), -p.hard_brake, a)
+    a_iidm = clamp(np.where((v <= v0_safe) & ~stop, below, above), -p.hard_brake, a)
     # Constant-acceleration heuristic, leader braking at b, on the net gap.
     a_cah = -b * v * v / (v_lead * v_lead + 2.0 * b * s_net)
     blended = (1.0 - p.coolness) * a_iidm + p.coolness * (a_cah + b * np.tanh((a_iidm - a_cah) / b))
-    return np.clip(np.where(a_iidm >= a_cah, a_iidm, blended), -p.hard_brake, a)
+    return clamp(np.where(a_iidm >= a_cah, a_iidm, blended), -p.hard_brake, a)
 
 
 def idm_speed_command(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, dt: float) -> np.ndarray:
@@ -83,7 +88,7 @@ def idm_speed_command(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, dt: 
 
 def lookahead(v: Any, gain: float, minimum: float, maximum: float) -> np.ndarray:
     """Pure-pursuit look-ahead distance ℓ = clamp(gain·v, min, max) [m]."""
-    return np.clip(gain * np.asarray(v, dtype=float), minimum, maximum)
+    return clamp(gain * np.asarray(v, dtype=float), minimum, maximum)
 
 
 def pure_pursuit_steer(x: Any, y: Any, heading: Any, target_x: Any, target_y: Any, wheelbase: float) -> np.ndarray:
@@ -110,33 +115,33 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
                  dt: float) -> BicycleState:
     """Advance by ``dt`` s towards the commanded speed and steering, within the limits (epsilon.md §3.2)."""
     L = limits.wheelbase
-    v = state.speed
-    steer = np.arctan(state.curvature * L)
-    v_cmd = np.maximum(np.asarray(speed_cmd, dtype=float), 0.0)
-    steer_cmd = np.clip(np.asarray(steer_cmd, dtype=float), -limits.max_steer, limits.max_steer)
+    v, curvature = state.speed, state.curvature
+    steer = np.arctan(curvature * L)
+    v_cmd = np.maximum(speed_cmd, 0.0)
+    steer_cmd = clamp(steer_cmd, -limits.max_steer, limits.max_steer)
     # Longitudinal shaping: jerk, then acceleration limits.
-    jerk = np.clip(((v_cmd - v) / dt - state.accel) / dt, -limits.brake_jerk, limits.accel_jerk)
-    accel = np.clip(state.accel + jerk * dt, -limits.hard_brake, limits.max_accel)
+    jerk = clamp(((v_cmd - v) / dt - state.accel) / dt, -limits.brake_jerk, limits.accel_jerk)
+    accel = clamp(state.accel + jerk * dt, -limits.hard_brake, limits.max_accel)
     v_new = np.maximum(v + accel * dt, 0.0)
-    # Lateral shaping: lateral jerk and acceleration limits, then the steer rate.
-    a_lat_des = v_new * v_new * np.tan(steer_cmd) / L
-    a_lat_now = v * v * state.curvature
-    a_lat = np.clip(a_lat_now + np.clip((a_lat_des - a_lat_now) / dt, -limits.lat_jerk, limits.lat_jerk) * dt,
-                    -limits.lat_accel, limits.lat_accel)
-    steer_target = np.arctan(a_lat * L / np.maximum(v_new * v_new, 0.01))
-    rate = np.clip(wrap_angle(steer_target - steer) / dt, -limits.max_steer_rate, limits.max_steer_rate)
-    steer_new = steer + rate * dt
+    # Lateral shaping: lateral jerk and acceleration limits, then the steer rate (both angles lie in ±π/2, so
+    # their difference needs no wrapping).
+    v_new_sq = v_new * v_new
+    a_lat_des = v_new_sq * np.tan(steer_cmd) / L
+    a_lat_now = v * v * curvature
+    a_lat = clamp(a_lat_now + clamp(a_lat_des - a_lat_now, -limits.lat_jerk * dt, limits.lat_jerk * dt),
+                  -limits.lat_accel, limits.lat_accel)
+    steer_target = np.arctan(a_lat * L / np.maximum(v_new_sq, 0.01))
+    steer_new = steer + clamp(steer_target - steer, -limits.max_steer_rate * dt, limits.max_steer_rate * dt)
     # Integrate ẋ = v cos θ, ẏ = v sin θ, θ̇ = v tan δ / L with v and δ linear over the step (one RK4 step).
-    x, y, th = state.x.astype(float), state.y.astype(float), state.heading.astype(float)
-    dv, ds = (v_new - v) / dt, (steer_new - steer) / dt
-
     # The yaw rate depends on time only, so it is evaluated once per RK4 stage time (0, dt/2, dt).
-    v_mid, v_end = v + dv * (dt / 2), v_new
-    w0, w_mid, w_end = v * np.tan(steer) / L, v_mid * np.tan(steer + ds * (dt / 2)) / L, v_end * np.tan(steer_new) / L
+    x, y, th = state.x, state.y, state.heading
+    v_mid = 0.5 * (v + v_new)
+    curvature_new = np.tan(steer_new) / L
+    w0, w_mid, w_end = v * curvature, v_mid * np.tan(0.5 * (steer + steer_new)) / L, v_new * curvature_new
     th2 = th + dt / 2 * w0
     th3 = th + dt / 2 * w_mid
     th4 = th + dt * w_mid
-    x = x + dt / 6 * (v * np.cos(th) + 2 * v_mid * (np.cos(th2) + np.cos(th3)) + v_end * np.cos(th4))
-    y = y + dt / 6 * (v * np.sin(th) + 2 * v_mid * (np.sin(th2) + np.sin(th3)) + v_end * np.sin(th4))
+    x = x + dt / 6 * (v * np.cos(th) + 2 * v_mid * (np.cos(th2) + np.cos(th3)) + v_new * np.cos(th4))
+    y = y + dt / 6 * (v * np.sin(th) + 2 * v_mid * (np.sin(th2) + np.sin(th3)) + v_new * np.sin(th4))
     th = th + dt / 6 * (w0 + 4 * w_mid + w_end)
-    return BicycleState(x, y, wrap_angle(th), v_new, (v_new - v) / dt, np.tan(steer_new) / L)
+    return BicycleState(x, y, wrap_angle(th), v_new, (v_new - v) / dt, curvature_new)

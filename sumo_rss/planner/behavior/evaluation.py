@@ -80,19 +80,27 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
                                        formulas.lateral_reach(towards_agent, rss_agents),
                                        rss_ego.lat_fluctuation_margin, rss_agents.lat_fluctuation_margin)
     lat_unsafe = ~formulas.is_safe_distance(lat_gap, lat_min)
-    gap = np.abs(ds) - 0.5 * (length[0] + length[1:])
-    v_e, v_o = v[..., :1], v[..., 1:]
     front = ds >= 0.0
-    v_up = formulas.max_safe_speed_behind(np.maximum(gap, 0.0), v_o, rss_ego, rss_agents)
-    v_up = np.where(gap < 0.0, 0.0, np.maximum(v_up, 0.0))
-    v_low = formulas.min_safe_speed_ahead(gap, v_o, rss_ego, rss_agents)
-    too_fast = lat_unsafe & front & (v_e > v_up + 1e-6)
     # A rear car already beside-or-behind the ego in its lane at the start is that car's duty (the ego, in
-    # front, owes nothing); the ego is charged for the rear cars it moves in front of.
-    too_slow = lat_unsafe & ~lat_unsafe[:, :1] & ~front & (v_e < v_low - 1e-6)
+    # front, owes nothing); the ego is charged for the rear cars it moves in front of. The speed bounds are
+    # computed for the pairs that can be charged only.
+    charged = lat_unsafe & (front | ~lat_unsafe[:, :1])
+    penalty = np.zeros(charged.shape[:2])
+    if not np.any(charged):
+        return penalty
+    sample, agent = np.nonzero(charged.reshape(-1, charged.shape[-1]))
+    gap = np.abs(ds[charged]) - 0.5 * (length[0] + length[1:][agent])
+    v_e, v_o, front = v[..., 0].ravel()[sample], v[..., 1:][charged], front[charged]
+    p_o = rss_agents.take(agent)
+    v_up = formulas.max_safe_speed_behind(np.maximum(gap, 0.0), v_o, rss_ego, p_o)
+    v_up = np.where(gap < 0.0, 0.0, np.maximum(v_up, 0.0))
+    v_low = formulas.min_safe_speed_ahead(gap, v_o, rss_ego, p_o)
+    too_fast = front & (v_e > v_up + 1e-6)
+    too_slow = ~front & (v_e < v_low - 1e-6)
     fast = w.rss_over_coeff * v_e * 10.0 ** (w.rss_over_power * np.minimum(np.abs(v_e - v_up), w.rss_max_excess))
     slow = w.rss_lack_coeff * v_e * 10.0 ** (w.rss_lack_power * np.minimum(np.abs(v_e - v_low), w.rss_max_excess))
-    return np.where(too_fast, fast, 0.0).sum(axis=-1) + np.where(too_slow, slow, 0.0).sum(axis=-1)
+    return np.bincount(sample, np.where(too_fast, fast, 0.0) + np.where(too_slow, slow, 0.0),
+                       minlength=penalty.size).reshape(penalty.shape)
 
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,

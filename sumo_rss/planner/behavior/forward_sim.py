@@ -21,9 +21,10 @@ from typing import Any
 import numpy as np
 
 from ...rss import formulas
+from ..lanes import LEFT
 from ..road_frame import RoadFrame
-from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, idm_speed_command, lookahead, \
-    pure_pursuit_steer
+from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, clamp, idm_speed_command, \
+    lookahead, pure_pursuit_steer
 
 NO_LEADER_GAP = 100.0  # [m] a free road is a virtual leader 100 + 100·v ahead at the own speed
 LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
@@ -130,14 +131,15 @@ def _per_vehicle(ego: Any, agent: Any, n: int) -> Any:
 def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any, bh: Any, bl: Any,
                   bw: Any) -> np.ndarray:
     """Whether oriented boxes (centre, heading, length, width) overlap, broadcast: a separating-axis test on the
-    pairs whose axis-aligned bounding boxes meet (the others cannot overlap)."""
+    pairs whose bounding extents meet."""
     dx, dy = np.asarray(bx) - ax, np.asarray(by) - ay
-    shape = np.broadcast(dx, dy, ah, bh, al, aw, bl, bw).shape
+    # Bounding extents without trigonometry (|sin h| ≤ |h|, |cos h| ≤ 1): boxes whose extents do not meet along x
+    # or y cannot overlap, and the exact test runs on the other pairs only.
+    abs_ah, abs_bh = np.abs(ah), np.abs(bh)
+    close = (np.abs(dx) < 0.5 * (al + bl + aw * abs_ah + bw * abs_bh)) & \
+        (np.abs(dy) < 0.5 * (aw + bw + al * abs_ah + bl * abs_bh))  # every input takes part: the full shape
+    shape = close.shape
     overlap = np.zeros(shape, dtype=bool)
-    (ca, sa), (cb, sb) = (np.abs(np.cos(ah)), np.abs(np.sin(ah))), (np.abs(np.cos(bh)), np.abs(np.sin(bh)))
-    close = (np.abs(dx) < 0.5 * (al * ca + aw * sa + bl * cb + bw * sb)) & \
-        (np.abs(dy) < 0.5 * (al * sa + aw * ca + bl * sb + bw * cb))
-    close = np.broadcast_to(close, shape)
     if not np.any(close):
         return overlap
     dx, dy, ah, al, aw, bh, bl, bw = (np.broadcast_to(np.asarray(a, dtype=float), shape)[close]
@@ -153,114 +155,162 @@ def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any,
     return overlap
 
 
+def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The DCP-tree's shared prefixes: rollouts whose inputs agree up to the end of a layer are the same rollout
+    until then, so each distinct prefix is simulated once. Per layer: the representative rollout of each
+    distinct prefix, the prefix's parent in the previous layer (layer 0: the single initial state) and the
+    prefix of every rollout."""
+    base = np.column_stack([rollouts.ego_v0, rollouts.ego_spacing_scale, rollouts.ego_backup,
+                            rollouts.agent_chain[:, 1:]]).astype(float)
+    code = np.unique(base, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+    tree, previous = [], np.zeros(base.shape[0], dtype=np.intp)
+    for layer in range(rollouts.ego_chain.shape[1]):
+        code = code * (LEFT + 1) + rollouts.ego_chain[:, layer]  # the prefix up to this layer, as one integer
+        _, first, inverse = np.unique(code, return_index=True, return_inverse=True)
+        tree.append((first, previous[first], inverse))
+        previous = inverse
+    return tree
+
+
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2) -> SimResult:
     """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
-    RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier."""
+    RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier. Rollouts that share
+    a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
     R = rollouts.ego_v0.shape[0]
+    tree = prefix_tree(rollouts)
     cols = np.arange(n)
-    idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
-    scale = np.ones((R, n))
-    scale[:, 0] = rollouts.ego_spacing_scale
-    idm = replace(idm, s0=idm.s0[None, :] * scale, headway=idm.headway[None, :] * scale)
+    agent_idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
     limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
-    radius = np.where(cols == 0, settings.ego_radius, settings.agent_radius)
     length, width = vehicles.length, vehicles.width
-    v0 = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (R, 1))
-    v0[:, 0] = rollouts.ego_v0
-    tracked = rollouts.agent_chain.copy()
-    not_self = ~np.eye(n, dtype=bool)[None, :, :]
-    rollout_column = np.arange(R)[:, None, None] * n + np.arange(n)[None, None, :]  # flat [r, j] in [3, R, n]
-
-    def tile(a: np.ndarray) -> np.ndarray:
-        return np.tile(np.asarray(a, dtype=float), (R, 1))
-
-    state = BicycleState(tile(vehicles.s), tile(vehicles.d), tile(vehicles.heading), tile(vehicles.speed),
-                         tile(vehicles.accel), tile(vehicles.curvature))
+    radius_class = (cols == 0).astype(np.intp)  # search radius of each vehicle: 0 agent, 1 ego
+    state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
+        vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     shape = (R, n_steps + 1, n)
     out = {k: np.zeros(shape) for k in ("s", "d", "heading", "speed", "accel", "curvature")}
     lead_gap, lead_speed = np.full((R, n_steps + 1), np.inf), np.zeros((R, n_steps + 1))
     chain_out = np.zeros(shape, dtype=np.intp)
-    valid = np.ones(R, dtype=bool)
-    barrier_steps = np.zeros(R, dtype=int)
-    gap_front = gap_rear = np.full(R, -1)
+    valid = np.ones(1, dtype=bool)
+    barrier_steps = np.zeros(1, dtype=int)
     layer = -1
     for k in range(n_steps + 1):
+        branching = k < n_steps and (layer < 0 or k >= layer_end[layer])
+        if branching:  # a new layer: every prefix continues as its children
+            layer += 1
+            first, parent, inverse = tree[layer]
+            state = BicycleState(*(a[parent] for a in (state.x, state.y, state.heading, state.speed, state.accel,
+                                                       state.curvature)))
+            valid, barrier_steps = valid[parent], barrier_steps[parent]
+            G = first.size
+            backup = rollouts.ego_backup[first]
+            tracked = rollouts.agent_chain[first].copy()
+            tracked[:, 0] = rollouts.ego_chain[first, layer]
+            v0 = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (G, 1))
+            v0[:, 0] = rollouts.ego_v0[first]
+            scale = np.ones((G, n))
+            scale[:, 0] = rollouts.ego_spacing_scale[first]
+            idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
+            idm_three = _three_leaders(idm, G, n)
         for key, value in zip(out, (state.x, state.y, state.heading, state.speed, state.accel, state.curvature)):
-            out[key][:, k] = value
+            out[key][:, k] = value[inverse]
         s, d, v = state.x, state.y, state.speed
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
                             width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
                             length[1:] + settings.inflation, width[1:] + settings.inflation)
-        valid &= ~np.any(hit, axis=1)
-        centres = frame.centres_at(s)  # [3, R, n]
+        valid = valid & ~np.any(hit, axis=1)
+        centres = frame.centres_at(s)  # [3, G, n]
         now_chain = frame.chain_of_offsets(centres, s, d)
-        chain_out[:, k] = now_chain
-        if k < n_steps and (layer < 0 or k >= layer_end[layer]):
-            layer += 1
-            tracked[:, 0] = rollouts.ego_chain[:, layer]
+        chain_out[:, k] = now_chain[inverse]
+        if branching:
             gap_front, gap_rear = _gap_vehicles(centres, s, d, tracked[:, 0], settings.ego_radius)
-        # Leaders on the tracked lane and on the lane each vehicle is in now.
-        ds = s[:, None, :] - s[:, :, None]  # [R, i, j] = s_j - s_i
-        # centre_x[r, i, j]: where the lane vehicle i tracks (is in) lies at vehicle j's position.
-        flat_centres = centres.ravel()
-        centre_tracked = flat_centres.take(tracked[:, :, None] * (R * n) + rollout_column)
-        centre_now = flat_centres.take(now_chain[:, :, None] * (R * n) + rollout_column)
-        ahead = (ds > 0.0) & not_self & (ds < LEADER_RANGE + length[None, None, :])
-        gap_all = ds - 0.5 * (length[None, :, None] + length[None, None, :])
-        band_t = ahead & (np.abs(d[:, None, :] - centre_tracked) < radius[None, :, None])
-        band_c = ahead & (np.abs(d[:, None, :] - centre_now) < radius[None, :, None])
-        gap_t, v_t = _nearest(gap_all, band_t, v)
-        gap_c, v_c = _nearest(gap_all, band_c, v)
+            rss_front, rss_rear = rss_agents.take(np.maximum(gap_front, 0)), rss_agents.take(np.maximum(gap_rear, 0))
+        # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
+        (gap_t, gap_c), (v_t, v_c) = leaders_ahead(s, d, v, centres, np.stack([tracked, now_chain]), radius_class,
+                                              length, (settings.agent_radius, settings.ego_radius))
         gap_t, v_t = _lane_end(frame, tracked, s, length, gap_t, v_t, settings.lane_end_margin)
         gap_c_free, v_c_free = gap_c, v_c
         gap_c, v_c = _lane_end(frame, now_chain, s, length, gap_c, v_c, settings.lane_end_margin)
-        lead_gap[:, k], lead_speed[:, k] = gap_t[:, 0], v_t[:, 0]
+        lead_gap[:, k], lead_speed[:, k] = gap_t[inverse, 0], v_t[inverse, 0]
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
         free_gap = NO_LEADER_GAP + NO_LEADER_GAP * v
-        gaps, v_leads = np.stack([gap_t, gap_c]), np.stack([v_t, v_c])  # both leaders in one call
-        cmd_t, cmd_c = idm_speed_command(v, v0, np.where(np.isinf(gaps), v, v_leads),
-                                         np.where(np.isinf(gaps), free_gap, gaps), idm, dt)
+        # The ego's own-lane leader without the waiting margin before a lane end (used once a change is going).
+        gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], gap_c_free[:, :1], v_c_free[:, :1],
+                                 0.0)
+        # Three leaders in one call: on the tracked lane, on the current lane, and the ego's 'going' leader.
+        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel(), gap_go[:, 0]])
+        v_leads = np.concatenate([v_t.ravel(), v_c.ravel(), v_go[:, 0]])
+        v_three = np.concatenate([v.ravel(), v.ravel(), v[:, 0]])
+        free = np.isinf(gaps)
+        cmd = idm_speed_command(v_three, np.concatenate([v0.ravel(), v0.ravel(), v0[:, 0]]),
+                                np.where(free, v_three, v_leads),
+                                np.where(free, np.concatenate([free_gap.ravel(), free_gap.ravel(), free_gap[:, 0]]),
+                                         gaps), idm_three, dt)
+        cmd_t, cmd_c, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n:2 * G * n].reshape(G, n), cmd[2 * G * n:]
         speed_cmd = np.minimum(cmd_t, cmd_c)
-        target_offset = np.zeros((R, n))
+        target_offset = np.zeros((G, n))
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
-        changing = (tracked[:, 0] != now_chain[:, 0]) & ~rollouts.ego_backup
+        changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
         if np.any(changing):
-            lc_cmd, barrier = _lane_change_command(s, v, length, gap_front, gap_rear, idm, v0, settings, rss_ego,
-                                                   rss_agents, dt)
+            lc_cmd, barrier = _lane_change_command(s, v, length, gap_front, gap_rear, rss_front, rss_rear, idm, v0,
+                                                   settings, rss_ego, dt)
             hold = changing & barrier
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
-            gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], gap_c_free[:, :1],
-                                     v_c_free[:, :1], 0.0)
-            cmd_go = idm_speed_command(v[:, :1], v0[:, :1], np.where(np.isinf(gap_go), v[:, :1], v_go),
-                                       np.where(np.isinf(gap_go), free_gap[:, :1], gap_go),
-                                       replace(idm, s0=idm.s0[:, :1], headway=idm.headway[:, :1]), dt)[:, 0]
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
-            barrier_steps += hold
+            barrier_steps = barrier_steps + hold
             centre_target = frame.centre_d(tracked[:, 0], s[:, 0] + lookahead(v[:, 0], *settings.ego_pursuit))
             target_offset[:, 0] = np.where(hold, d[:, 0] - centre_target, 0.0)
-        speed_cmd[:, 0] = np.where(rollouts.ego_backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0),
-                                   speed_cmd[:, 0])
+        speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
         ell = lookahead(v, gain, l_min, l_max)
         target_d = frame.centre_d(tracked, s + ell) + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         state = bicycle_step(state, speed_cmd, steer, limits, dt)
     return SimResult(t, layer_end, out["s"], out["d"], out["heading"], out["speed"], out["accel"],
-                     out["curvature"], valid, lead_gap, lead_speed, barrier_steps, chain_out)
+                     out["curvature"], valid[inverse], lead_gap, lead_speed, barrier_steps[inverse], chain_out)
 
 
-def _nearest(gap: np.ndarray, mask: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest masked gap per (rollout, vehicle) and that leader's speed (inf / 0 where none)."""
-    masked = np.where(mask, gap, np.inf)
-    j = np.argmin(masked, axis=2)
-    best = np.take_along_axis(masked, j[..., None], axis=2)[..., 0]
-    return best, np.take_along_axis(v, j, axis=1)
+def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
+             radius_class: np.ndarray, length: np.ndarray, radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
+    further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
+    search radius (``radii[radius_class]``). Vehicles are sorted along s once per rollout, so the search is
+    O(n log n) instead of O(n²). Returns the bumper gaps [m] (inf: none) and the leaders' speeds, [m, G, n]."""
+    G, n = s.shape
+    cols = np.arange(n)
+    row_base = (np.arange(G) * n)[:, None]
+    sorted_flat = (row_base + np.argsort(s, axis=1, kind="stable")).ravel()  # flat [r, vehicle] by s per rollout
+    rank = np.empty(G * n, dtype=np.intp)
+    rank[sorted_flat] = np.tile(cols, G)
+    rank = rank.reshape(G, n)
+    offset = np.abs(d[None] - centres).reshape(3, -1)  # [3, G·n]
+    member = np.stack([offset < radius for radius in radii])[:, :, sorted_flat].reshape(2, 3, G, n)
+    # The first member strictly after each sorted position (n: none).
+    position = np.where(member, cols, n)
+    after = np.minimum.accumulate(position[..., :0:-1], axis=-1)[..., ::-1]
+    following = np.concatenate([after, np.full(position.shape[:-1] + (1,), n)], axis=-1)  # [2, 3, G, n]
+    table = ((radius_class * 3 + lanes) * G + np.arange(G)[:, None]) * n + rank  # [m, G, n]
+    lead = following.ravel().take(table)
+    found = lead < n
+    flat_j = np.where(found, sorted_flat.take(row_base + np.minimum(lead, n - 1)), row_base)
+    j = flat_j - row_base
+    ds = s.ravel().take(flat_j) - s
+    ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
+    return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j)
+
+
+def _three_leaders(idm: IdmParams, G: int, n: int) -> IdmParams:
+    """Per-vehicle IDM parameters laid out for one flat call over [tracked-lane leaders (G·n), current-lane
+    leaders (G·n), the ego's 'going' leader (G)]."""
+    values = {}
+    for name in idm.__dataclass_fields__:
+        full = np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n))
+        values[name] = np.concatenate([full.ravel(), full.ravel(), full[:, 0]])
+    return IdmParams(**values)
 
 
 def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
@@ -287,9 +337,10 @@ def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.
 
 
 def _lane_change_command(s: np.ndarray, v: np.ndarray, length: np.ndarray, gap_front: np.ndarray,
-                         gap_rear: np.ndarray, idm: IdmParams, v0: np.ndarray, st: SimSettings, rss_ego: Any,
-                         rss_agents: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back."""
+                         gap_rear: np.ndarray, rss_front: Any, rss_rear: Any, idm: IdmParams, v0: np.ndarray,
+                         st: SimSettings, rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back;
+    ``rss_front`` / ``rss_rear``: the RSS parameters of the gap cars (any row where there is none)."""
     rows = np.arange(s.shape[0])
     has_f, has_r = gap_front >= 0, gap_rear >= 0
     f, r = np.maximum(gap_front, 0), np.maximum(gap_rear, 0)
@@ -301,25 +352,24 @@ def _lane_change_command(s: np.ndarray, v: np.ndarray, length: np.ndarray, gap_f
     v_f, v_r = v[rows, f], v[rows, r]
     s_thr_f = s_ref_f - s0 - T * v_e - half
     s_thr_r = s_ref_r + s0 + T * v_r + half
-    v_ref_f = np.maximum(0.0, v_f + np.clip(st.gap_speed_gain * (s_thr_f - s_e), -3.0, 5.0))
-    v_ref_r = np.maximum(0.0, v_r + np.clip(st.gap_speed_gain * (s_thr_r - s_e), -3.0, 5.0))
+    v_ref_f = np.maximum(0.0, v_f + clamp(st.gap_speed_gain * (s_thr_f - s_e), -3.0, 5.0))
+    v_ref_r = np.maximum(0.0, v_r + clamp(st.gap_speed_gain * (s_thr_r - s_e), -3.0, 5.0))
     v_pref = v_e + st.preferred_blend * (v0[:, 0] - v_e)
     mid = 0.5 * (s_ref_f + s_ref_r)
-    both_s = np.clip(s_e, np.minimum(mid, s_thr_r), np.maximum(mid, s_thr_f))
+    both_s = clamp(s_e, np.minimum(mid, s_thr_r), np.maximum(mid, s_thr_f))
     both_v = np.minimum(np.maximum(v_ref_r, v_pref), v_ref_f)
     squeezed = s_ref_f < s_ref_r
     s_des = np.where(has_f & has_r, np.where(squeezed, s_e, both_s),
                      np.where(has_f, np.minimum(s_e, s_thr_f), np.where(has_r, np.maximum(s_e, s_thr_r), s_e)))
     v_des = np.where(has_f & has_r, np.where(squeezed, v_e, both_v),
                      np.where(has_f, np.minimum(v_pref, v_ref_f), np.where(has_r, np.maximum(v_ref_r, v_pref), v_e)))
-    a_track = np.clip(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
+    a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
     cmd = np.maximum(v_e + a_track * dt, 0.0)
     # RSS towards the gap cars (bumper gaps): the ego ahead of the rear car, behind the front car.
     gap_to_rear = s_e - half - s_ref_r
     gap_to_front = s_ref_f - s_e - half
-    p_r, p_f = rss_agents.take(r), rss_agents.take(f)
-    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, p_r)
-    v_high = formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, p_f)
+    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, rss_rear)
+    v_high = formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, rss_front)
     too_slow = has_r & (v_e < v_low - 1e-6)
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
     barrier = too_slow | (has_f & (v_e > v_high + 1e-6))
