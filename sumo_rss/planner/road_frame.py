@@ -82,7 +82,8 @@ class RoadFrame:
         return self.centre[:, i] * (1.0 - f) + self.centre[:, i + 1] * f
 
     def _grid(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
-        g = np.clip((np.asarray(s, dtype=float) - self.s0) / GRID_STEP, 0.0, self.centre.shape[1] - 1.000001)
+        g = np.minimum(np.maximum((np.asarray(s, dtype=float) - self.s0) / GRID_STEP, 0.0),
+                       self.centre.shape[1] - 1.000001)
         i = g.astype(np.intp)
         return i, g - i
 
@@ -97,7 +98,8 @@ class RoadFrame:
     def slope(self, chain: Any, s: Any) -> np.ndarray:
         """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
         cells = self.slope_grid.shape[1]
-        i = np.clip(((np.asarray(s, dtype=float) - self.s0) / GRID_STEP).astype(np.intp), 0, cells - 1)
+        i = np.minimum(np.maximum(((np.asarray(s, dtype=float) - self.s0) / GRID_STEP).astype(np.intp), 0),
+                       cells - 1)
         return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * cells + i)
 
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:

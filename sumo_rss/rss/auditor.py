@@ -109,7 +109,7 @@ class Auditor:
         self.junctions = JunctionModel.from_file(network.path, network)
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
-        self._traces: list[pd.DataFrame] = []
+        self._traces: list[tuple] = []  # per traced step: (episode keys, time, gap arrays...)
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
@@ -163,11 +163,19 @@ class Auditor:
             return
         order = np.argsort(keys)
         rows = order[np.searchsorted(keys, traced, sorter=order)]
-        self._traces.append(pd.DataFrame({
-            "run_id": self.run_id, "episode_key": episode_keys, "time_s": time,
-            "lon_gap_m": situations.lon_gap[rows], "lon_d_min_m": situations.lon_d_min[rows],
-            "lat_gap_m": situations.lat_gap[rows], "lat_d_min_m": situations.lat_d_min[rows],
-            "dangerous": situations.dangerous[rows]}))
+        self._traces.append((episode_keys, np.full(len(episode_keys), time), situations.lon_gap[rows],
+                             situations.lon_d_min[rows], situations.lat_gap[rows], situations.lat_d_min[rows],
+                             situations.dangerous[rows]))
+
+    def _pair_states(self) -> pd.DataFrame:
+        """The traced pair states of the whole run as one table (built once, at the end)."""
+        if not self._traces:
+            return pd.DataFrame(columns=PAIR_STATE_COLUMNS)
+        keys, *columns = zip(*self._traces)
+        names = ("time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m", "dangerous")
+        table = {"run_id": self.run_id, "episode_key": [k for step in keys for k in step]}
+        table.update({name: np.concatenate(values) for name, values in zip(names, columns)})
+        return pd.DataFrame(table)
 
     def record_collisions(self, collisions: Iterable[CollisionInput]) -> None:
         """Join collisions of the current step to their pairs' open episodes (blame = the episode's)."""
@@ -226,6 +234,5 @@ class Auditor:
         collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)
         pair_states = None
         if self.trace_class is not None:
-            pair_states = pd.concat(self._traces, ignore_index=True) if self._traces else \
-                pd.DataFrame(columns=PAIR_STATE_COLUMNS)
+            pair_states = self._pair_states()
         return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states)

@@ -228,19 +228,19 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap_front, gap_rear = _gap_vehicles(centres, s, d, tracked[:, 0], settings.ego_radius)
             rss_front, rss_rear = rss_agents.take(np.maximum(gap_front, 0)), rss_agents.take(np.maximum(gap_rear, 0))
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
-        (gap_t, gap_c), (v_t, v_c) = leaders_ahead(s, d, v, centres, np.stack([tracked, now_chain]), radius_class,
-                                              length, (settings.agent_radius, settings.ego_radius))
-        gap_t, v_t = _lane_end(frame, tracked, s, length, gap_t, v_t, settings.lane_end_margin)
-        gap_c_free, v_c_free = gap_c, v_c
-        gap_c, v_c = _lane_end(frame, now_chain, s, length, gap_c, v_c, settings.lane_end_margin)
+        looks = np.stack([tracked, now_chain])
+        free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, radius_class, length,
+                                               (settings.agent_radius, settings.ego_radius))
+        (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
+                                               settings.lane_end_margin)
         lead_gap[:, k], lead_speed[:, k] = gap_t[inverse, 0], v_t[inverse, 0]
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
         free_gap = NO_LEADER_GAP + NO_LEADER_GAP * v
         # The ego's own-lane leader without the waiting margin before a lane end (used once a change is going).
-        gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], gap_c_free[:, :1], v_c_free[:, :1],
-                                 0.0)
+        gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
+                                 free_speeds[1, :, :1], 0.0)
         # Three leaders in one call: on the tracked lane, on the current lane, and the ego's 'going' leader.
         gaps = np.concatenate([gap_t.ravel(), gap_c.ravel(), gap_go[:, 0]])
         v_leads = np.concatenate([v_t.ravel(), v_c.ravel(), v_go[:, 0]])
