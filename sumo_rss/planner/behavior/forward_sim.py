@@ -189,10 +189,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     radius_class = (cols == 0).astype(np.intp)  # search radius of each vehicle: 0 agent, 1 ego
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
-    shape = (R, n_steps + 1, n)
-    out = {k: np.zeros(shape) for k in ("s", "d", "heading", "speed", "accel", "curvature")}
-    lead_gap, lead_speed = np.full((R, n_steps + 1), np.inf), np.zeros((R, n_steps + 1))
-    chain_out = np.zeros(shape, dtype=np.intp)
+    layers_recorded: list[tuple[np.ndarray, list[tuple[np.ndarray, ...]]]] = []  # (prefix of each rollout, steps)
     valid = np.ones(1, dtype=bool)
     barrier_steps = np.zeros(1, dtype=int)
     layer = -1
@@ -214,8 +211,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             scale[:, 0] = rollouts.ego_spacing_scale[first]
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
             idm_three = _three_leaders(idm, G, n)
-        for key, value in zip(out, (state.x, state.y, state.heading, state.speed, state.accel, state.curvature)):
-            out[key][:, k] = value[inverse]
+            layers_recorded.append((inverse, []))
         s, d, v = state.x, state.y, state.speed
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
                             width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
@@ -223,7 +219,6 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         valid = valid & ~np.any(hit, axis=1)
         centres = frame.centres_at(s)  # [3, G, n]
         now_chain = frame.chain_of_offsets(centres, s, d)
-        chain_out[:, k] = now_chain[inverse]
         if branching:
             gap_front, gap_rear = _gap_vehicles(centres, s, d, tracked[:, 0], settings.ego_radius)
             rss_front, rss_rear = rss_agents.take(np.maximum(gap_front, 0)), rss_agents.take(np.maximum(gap_rear, 0))
@@ -233,7 +228,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                                (settings.agent_radius, settings.ego_radius))
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
-        lead_gap[:, k], lead_speed[:, k] = gap_t[inverse, 0], v_t[inverse, 0]
+        layers_recorded[-1][1].append((s, d, state.heading, v, state.accel, state.curvature, now_chain, gap_t[:, 0],
+                                       v_t[:, 0]))
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
@@ -270,8 +266,12 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         target_d = frame.centre_d(tracked, s + ell) + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         state = bicycle_step(state, speed_cmd, steer, limits, dt)
-    return SimResult(t, layer_end, out["s"], out["d"], out["heading"], out["speed"], out["accel"],
-                     out["curvature"], valid[inverse], lead_gap, lead_speed, barrier_steps[inverse], chain_out)
+    # Every rollout's samples: each layer's steps of its prefix (one gather per layer and quantity).
+    per_layer = [[np.stack(values, axis=1)[inverse] for values in zip(*steps)] for inverse, steps in layers_recorded]
+    s, d, heading, speed, accel, curvature, chain, lead_gap, lead_speed = (
+        np.concatenate(parts, axis=1) for parts in zip(*per_layer))
+    return SimResult(t, layer_end, s, d, heading, speed, accel, curvature, valid[inverse], lead_gap, lead_speed,
+                     barrier_steps[inverse], chain)
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
