@@ -97,10 +97,8 @@ class RoadFrame:
 
     def slope(self, chain: Any, s: Any) -> np.ndarray:
         """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
-        cells = self.slope_grid.shape[1]
-        i = np.minimum(np.maximum(((np.asarray(s, dtype=float) - self.s0) / GRID_STEP).astype(np.intp), 0),
-                       cells - 1)
-        return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * cells + i)
+        i, _ = self._grid(s)
+        return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * self.slope_grid.shape[1] + i)
 
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""

@@ -172,9 +172,8 @@ class Auditor:
         if not self._traces:
             return pd.DataFrame(columns=PAIR_STATE_COLUMNS)
         keys, *columns = zip(*self._traces)
-        names = ("time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m", "dangerous")
         table = {"run_id": self.run_id, "episode_key": [k for step in keys for k in step]}
-        table.update({name: np.concatenate(values) for name, values in zip(names, columns)})
+        table.update({name: np.concatenate(values) for name, values in zip(PAIR_STATE_COLUMNS[2:], columns)})
         return pd.DataFrame(table)
 
     def record_collisions(self, collisions: Iterable[CollisionInput]) -> None:

@@ -179,7 +179,6 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
-    R = rollouts.ego_v0.shape[0]
     tree = prefix_tree(rollouts)
     cols = np.arange(n)
     agent_idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
@@ -275,7 +274,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
-             radius_class: np.ndarray, length: np.ndarray, radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                  radius_class: np.ndarray, length: np.ndarray,
+                  radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
     further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
     search radius (``radii[radius_class]``). Vehicles are sorted along s once per rollout, so the search is
@@ -287,13 +287,14 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     rank = np.empty(G * n, dtype=np.intp)
     rank[sorted_flat] = np.tile(cols, G)
     rank = rank.reshape(G, n)
-    offset = np.abs(d[None] - centres).reshape(3, -1)  # [3, G·n]
-    member = np.stack([offset < radius for radius in radii])[:, :, sorted_flat].reshape(2, 3, G, n)
+    chains = centres.shape[0]
+    offset = np.abs(d[None] - centres).reshape(chains, -1)  # [chains, G·n]
+    member = np.stack([offset < radius for radius in radii])[:, :, sorted_flat].reshape(len(radii), chains, G, n)
     # The first member strictly after each sorted position (n: none).
     position = np.where(member, cols, n)
     after = np.minimum.accumulate(position[..., :0:-1], axis=-1)[..., ::-1]
-    following = np.concatenate([after, np.full(position.shape[:-1] + (1,), n)], axis=-1)  # [2, 3, G, n]
-    table = ((radius_class * 3 + lanes) * G + np.arange(G)[:, None]) * n + rank  # [m, G, n]
+    following = np.concatenate([after, np.full(position.shape[:-1] + (1,), n)], axis=-1)  # [radii, chains, G, n]
+    table = ((radius_class * chains + lanes) * G + np.arange(G)[:, None]) * n + rank  # [m, G, n]
     lead = following.ravel().take(table)
     found = lead < n
     flat_j = np.where(found, sorted_flat.take(row_base + np.minimum(lead, n - 1)), row_base)
