@@ -12,17 +12,23 @@ LANE_Y = -5.25  # centre of highway lane 1 (lanes 3.5 m wide, the edge's left bo
 SPEED = 25.0  # [m/s]
 
 
+def _lane_keeping_plan(session: Session, duration: float) -> tuple[Trajectory, float, float]:
+    """Steps until the ego departs; then a plan at SPEED along lane 1 for ``duration`` s, its start time and x."""
+    while not session.ego_on_road:
+        session.step()
+    t0 = session.time
+    x0 = float(session.snapshot.x[session.snapshot.index_of("ego")])
+    times = t0 + np.arange(0.0, duration, session.spec.step_s)
+    plan = Trajectory(times, x0 + SPEED * (times - t0), np.full_like(times, LANE_Y), np.zeros_like(times),
+                      np.full_like(times, SPEED), np.zeros_like(times))
+    return plan, t0, x0
+
+
 def test_constant_speed_lane_keeping_trajectory_is_followed(valid_scenario, tmp_path):
     valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 600
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))
     with Session(spec) as session:
-        while not session.ego_on_road:
-            session.step()
-        t0 = session.time
-        x0 = float(session.snapshot.x[session.snapshot.index_of("ego")])
-        times = t0 + np.arange(0.0, 12.0, spec.step_s)
-        plan = Trajectory(times, x0 + SPEED * (times - t0), np.full_like(times, LANE_Y), np.zeros_like(times),
-                          np.full_like(times, SPEED), np.zeros_like(times))
+        plan, t0, x0 = _lane_keeping_plan(session, 12.0)
         rows = []
         for _ in range(100):  # 10 s: 250 m along hw0 (900 m long)
             session.drive_ego(plan)
@@ -58,3 +64,23 @@ def test_trajectory_interpolates_and_rejects_bad_input():
         plan.state_at(2.5)
     with pytest.raises(ValueError, match="strictly increasing"):
         Trajectory(np.array([0.0, 0.0]), *(np.zeros(2) for _ in range(5)))
+
+
+def test_the_ego_arrives_at_the_end_of_its_route(valid_scenario, tmp_path):
+    """A vehicle placed by moveToXY never arrives on its own: at the end of its route's last edge the session hands
+    the ego back to SUMO, which lets it arrive there (hw0 ends at x = 900 m; hw1 goes on, off the ego's route)."""
+    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 600
+    valid_scenario["ego"]["route"] = ["hw0"]
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with Session(spec) as session:
+        plan, t0, x0 = _lane_keeping_plan(session, 60.0)
+        edges, last_x = set(), x0
+        while session.ego_on_road and session.time < t0 + 50.0:
+            session.drive_ego(plan)
+            snap = session.step()
+            if session.ego_on_road:
+                edges.add(str(snap.edge_id[snap.index_of("ego")]))
+                last_x = float(snap.x[snap.index_of("ego")])
+    assert not session.ego_on_road  # it arrived, ~ (900 - 50) / 25 = 34 s after departing
+    assert session.time < t0 + 36.0
+    assert edges == {"hw0"} and last_x > 870.0

@@ -8,8 +8,8 @@ Runs are cut short (highway: 60 s of planner driving; merge: until 240 s).
 The 20-seed runs take ~20 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``; each
 scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) is asserted
 strictly. Lane changes and merging within 240 s are xfail: under ad_rss a change needs an RSS-safe gap of
-~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's note), and the ego then keeps
-its lane or waits at the end of the acceleration lane. The suite always runs a 2-seed smoke version: no ego
+~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's notes), and the ego then keeps
+its lane or waits at the end of the acceleration lane (measured: 14 of 20 ramp runs merge by 240 s). The suite always runs a 2-seed smoke version: no ego
 collision, never responsible, the planner drives every step, the ego gets onto the acceleration lane and never
 past its end.
 """
@@ -59,9 +59,12 @@ def _assert_safe(runs: list[tuple[Task, Path]], *, never_responsible: bool = Tru
         assert not [c for c in summary["collision_events"] if ego in (c["collider"], c["victim"])], task.run_id
         if never_responsible:
             assert summary["ego_responsible_episodes"] == 0, task.run_id
-        # The planner drove the ego every step from its first one on the road to the end of the run.
+        # The planner drove the ego every step from its first one on the road to the end of the run, or until
+        # it arrived at the end of its route (then the last row of its trace was planned for too).
         assert summary["ego_controller"] == "epsilon"
-        assert summary["planner"]["cycles"] == len(_trace(folder)) - 1
+        trace = _trace(folder)
+        arrived = float(trace[-1]["time_s"]) + task.spec.step_s < summary["sim_time_s"] - 1e-6
+        assert summary["planner"]["cycles"] == len(trace) - (0 if arrived else 1)
         summaries.append(summary)
     return summaries
 

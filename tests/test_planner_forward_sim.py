@@ -2,16 +2,20 @@
 at y = -8.75 / -5.25 / -1.75, 3.5 m apart; the frame's s runs along +x from the start of hw0)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from conftest import NETWORKS
+from sumo_rss.planner.behavior.evaluation import CostWeights, rss_penalty
 from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss import formulas
 from sumo_rss.rss.auditor import ParamResolver
 from sumo_rss.rss.params import RssParamArrays, RssParams
 from sumo_rss.sim.snapshot import WorldSnapshot
@@ -227,3 +231,76 @@ def test_leader_search_matches_the_pairwise_definition():
                 gap = np.where(ok, ds - 0.5 * (length[i] + length), np.inf)
                 j = int(np.argmin(gap))
                 assert gaps[m, r, i] == pytest.approx(gap[j]) and speeds[m, r, i] == v[r, j]
+
+
+def _first_lateral_unsafe(sim, agent, p):
+    """Sample index at which the ego first becomes laterally RSS-unsafe to ``agent`` (None: never)."""
+    d_e, d_a = sim.d[0, :, 0], sim.d[0, :, agent]
+    v_lat = sim.speed[0, :, 0] * np.sin(sim.heading[0, :, 0])
+    towards = np.where(d_e >= d_a, -v_lat, v_lat)
+    lat_min = formulas.combine_lateral(formulas.lateral_reach(towards, p), formulas.lateral_reach(0.0, p),
+                                       p.lat_fluctuation_margin, p.lat_fluctuation_margin)
+    unsafe = ~formulas.is_safe_distance(np.abs(d_e - d_a) - 1.8, lat_min)
+    return int(np.argmax(unsafe)) if unsafe.any() else None
+
+
+@pytest.mark.parametrize("gap", [60.0, 150.0, 160.0, 180.0, 260.0])
+def test_the_ego_enters_a_gap_only_where_the_cut_in_is_rss_safe(highway, gap):
+    """RSS's cut-in rule: the ego may make the gap's rear car laterally unsafe only while the pair is
+    longitudinally safe; after that the rear car keeps its distance, and the ego is not held half-way.
+    Ego at 20 m/s in the middle lane, a car at 30 m/s in the left lane ``gap`` m (bumpers) behind. Under ad_rss
+    that car needs 147.0 m behind a 20 m/s ego (30 + 1.75 + 33.5²/8 - 20²/16)."""
+    _, frame = highway
+    p = RssParams()
+    vehicles = _vehicles([200.0, 200.0 - 4.5 - gap], [0.0, 3.5], [20.0, 30.0], chain=[CURRENT, LEFT])
+    rollouts = Rollouts(np.array([[CURRENT, LEFT, LEFT, LEFT, LEFT]]), np.array([20.0]), np.ones(1),
+                        np.zeros(1, bool), 4.2, np.array([[1, LEFT]]), np.array([0.0, 30.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))
+    onset = _first_lateral_unsafe(sim, 1, p)
+    if onset is not None:
+        gap_then = sim.s[0, onset, 0] - sim.s[0, onset, 1] - 4.5
+        need = formulas.lon_safe_distance_same_dir(sim.speed[0, onset, 1], sim.speed[0, onset, 0], p, p)
+        assert gap_then > need
+    # The change starts after the first layer (1 s), when the gap is 10 m shorter; it needs 147 m then and
+    # 147 m one commit time (1 s, another 10 m) later: a gap >= 167 m now. Smaller gaps only close further.
+    entered = sim.d[0, -1, 0] > 1.75
+    assert entered == (gap > 167.0)
+    assert sim.valid[0]
+
+
+def test_a_change_under_way_is_not_held_half_way_when_the_rear_car_closes_in(highway):
+    """The ego is already moving across at 1 m/s (heading 0.05 rad at 20 m/s), 1 m from its lane's centre:
+    laterally unsafe to the left lane's car 100 m behind at 30 m/s, which is now longitudinally unsafe (it needs
+    147 m). The pair's duty is longitudinal (the rear car's), so the barrier does not hold the ego there."""
+    _, frame = highway
+    p = RssParams()
+    vehicles = Vehicles(np.array([200.0, 95.5]), np.array([1.0, 3.5]), np.array([0.05, 0.0]), np.array([20.0, 30.0]),
+                        np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.8), np.array([CURRENT, LEFT]))
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, LEFT]]), np.array([0.0, 30.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))
+    assert _first_lateral_unsafe(sim, 1, p) == 0
+    assert sim.barrier_steps[0] == 0 and sim.d[0, -1, 0] > 3.0
+
+
+def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
+    _, frame = highway
+    p = RssParams()
+    vehicles = _vehicles([200.0, 200.0 - 4.5 - 190.0], [0.0, 3.5], [20.0, 30.0], chain=[CURRENT, LEFT])
+    rollouts = Rollouts(np.array([[CURRENT, LEFT, LEFT, LEFT, LEFT]]), np.array([20.0]), np.ones(1),
+                        np.zeros(1, bool), 4.2, np.array([[1, LEFT]]), np.array([0.0, 30.0]))
+    params = RssParamArrays.stack([p] * 2)
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, params)
+    onset = _first_lateral_unsafe(sim, 1, p)
+    # Safe at the crossing, unsafe later (the rear car is faster): its duty, not the ego's.
+    later_gap = sim.s[0, -1, 0] - sim.s[0, -1, 1] - 4.5
+    assert onset is not None and later_gap < formulas.lon_safe_distance_same_dir(sim.speed[0, -1, 1],
+                                                                                 sim.speed[0, -1, 0], p, p)
+    penalty = rss_penalty(sim, frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8),
+                          CostWeights())
+    assert np.all(penalty == 0.0)
+    # The same crossing with the rear car 100 m closer is a cut-in: charged from the crossing on.
+    closer = replace(sim, s=sim.s + np.array([0.0, 100.0]))
+    penalty = rss_penalty(closer, frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8),
+                          CostWeights())
+    assert np.all(penalty[0, :onset] == 0.0) and np.all(penalty[0, onset:] > 0.0)

@@ -81,3 +81,33 @@ def test_rear_key_range_covers_the_rss_distance_of_fast_followers():
     reach = EpsilonPlanner._rear_reach(snapshot, 0, ParamResolver().arrays(snapshot))
     assert reach[1] == pytest.approx(30.0 + 1.75 + 33.5 ** 2 / 8.0 + 4.5)
     assert key_vehicles(snapshot, 0, frame, reach).rows.tolist() == [1]
+
+
+def _on_lane(net: RoadNetwork, lane_id: str, back_from_end: float) -> tuple[float, float, float]:
+    """(x, y, heading) of the front bumper ``back_from_end`` m before the end of ``lane_id``."""
+    k = int(net.lane_indices([lane_id])[0])
+    pts = net.shapes.points[k, : net.shapes.count[k]]
+    (x0, y0), (x1, y1) = pts[-2], pts[-1]
+    heading = float(np.arctan2(y1 - y0, x1 - x0))
+    return x1 - back_from_end * np.cos(heading), y1 - back_from_end * np.sin(heading), heading
+
+
+@pytest.mark.parametrize("lane_id, may_change", [("ramp_0", False), ("mw_merge_0", True)])
+def test_lane_changes_start_only_towards_a_neighbour_on_the_same_edge(lane_id, may_change):
+    """The ramp runs beside the motorway before they join, but SUMO changes lanes only within an edge: no change
+    starts on the ramp; on the acceleration lane the change to the left is planned."""
+    net = _net("merge")
+    x, y, heading = _on_lane(net, lane_id, 30.0)
+    snap = WorldSnapshot(time=50.0, ids=np.array(["ego"]), x=np.array([x]), y=np.array([y]),
+                         heading=np.array([heading]), speed=np.array([15.0]), accel=np.zeros(1),
+                         lat_speed=np.zeros(1), length=np.array([4.5]), width=np.array([1.8]),
+                         lane_id=np.array([lane_id]), edge_id=np.array([lane_id[:-2]]), lane_index=np.zeros(1, int),
+                         lane_pos=np.array([100.0]), lat_pos=np.zeros(1), vclass=np.array(["ego"]),
+                         vtype=np.array(["car"]), signals=np.zeros(1, int), route_index=np.zeros(1, int),
+                         route_edges=((lane_id[:-2], "mw_merge", "mw_out") if lane_id == "ramp_0" else
+                                      ("mw_merge", "mw_out"),))
+    result = EpsilonPlanner(net, ParamResolver()).plan(snap, "ego")
+    lateral = [name for name in result.costs if name != "backup" and set(name.split(":")[1]) != {"K"}]
+    assert bool(lateral) == may_change
+    # Per speed action: KKKKK, plus KLLLL ... KKKKL where the left lane may be entered (no lane on the right); + backup.
+    assert len(result.costs) == (3 * 5 + 1 if may_change else 3 + 1)

@@ -110,7 +110,7 @@ class EpsilonPlanner:
         v_ref = self._reference_speed(frame, v_ego)
         t_scene = time.perf_counter()
 
-        policies = self._policies(now, frame)
+        policies = self._policies(now, frame, lane)
         mandatory = self._mandatory(frame, float(vehicles.s[0]), v_ego)
         probs = self._intentions(frame, key, snapshot)
         horizon = float(sum(policies[0].durations))
@@ -201,16 +201,22 @@ class EpsilonPlanner:
         horizon = max(20.0, v * v / 1.67)
         return frame.chains.reference_speed(CURRENT, 0.0, horizon, self.config.desired_speed)
 
-    def _policies(self, now: float, frame: RoadFrame) -> list[Policy]:
+    def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
+        """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane
+        on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one);
+        an ongoing change goes on."""
         cfg = self.config
+        ongoing = self.manager.ongoing(now)
         if cfg.mode == "mpdm":
-            ongoing = self.manager.ongoing(now)
             durations = (cfg.layer_duration,) * cfg.layers
             lats = [ongoing.lat] if ongoing.lat is not Lat.KEEP else list(Lat)
             out = [Policy(Lon.MAINTAIN, (lat,) * cfg.layers, durations) for lat in lats]
         else:
-            out = valid_policies(self.manager.ongoing(now), cfg.layers, cfg.layer_duration)
-        return [p for p in out if all(frame.exists[_target(lat)] for lat in p.lats)]
+            out = valid_policies(ongoing, cfg.layers, cfg.layer_duration)
+        startable = {Lat.KEEP: True, Lat.LEFT: self.network.lane_left[lane] >= 0,
+                     Lat.RIGHT: self.network.lane_right[lane] >= 0}
+        return [p for p in out if all(frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)
+                                      for lat in p.lats)]
 
     def _mandatory(self, frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
         """The direction the ego must change to when its lane ends within reach (the route goes on)."""

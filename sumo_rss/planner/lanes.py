@@ -84,7 +84,7 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         start_s.append(offset)
         limits.append(float(network.lane_speed[list(chain)].min()))
         polylines.append(np.asarray(pts, dtype=float))
-        dead_end.append(len(network.lane_successors[chain[-1]]) == 0)
+        dead_end.append(bool(network.lane_ends[chain[-1]]))
     return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
                       np.array(limits), np.array(dead_end, dtype=bool))
 

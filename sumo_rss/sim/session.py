@@ -91,6 +91,7 @@ class Session:
         self._static: dict[str, _Static] = {}
         self._contacts = ContactTracker()
         self._ego_controlled = False
+        self._ego_released = False  # handed back to SUMO at the end of its route, to arrive
         self._lane_offsets: dict[str, float] = {}
         self._ego_lateral: tuple[str, float, float] | None = None  # (edge, lateral position, speed) last step
         self._ego_speed: float | None = None  # [m/s] at the last step
@@ -268,7 +269,23 @@ class Session:
             raise SessionError(f"scenario {self.spec.source} has no [ego]")
         if not self.ego_on_road:
             raise SessionError(f"the ego {self.ego_id!r} is not on the road at t = {self.time:.2f} s")
+        if self._ego_released:
+            return
+        if self._ego_arriving(state):
+            ego_actuation.release(self.ego_id)
+            self._ego_controlled, self._ego_released = False, True
+            return
         if not self._ego_controlled:
             ego_actuation.take_control(self.ego_id)
             self._ego_controlled = True
         ego_actuation.place(self.ego_id, state)
+
+    def _ego_arriving(self, state: TrajectoryState) -> bool:
+        """Whether the ego passes the end of its route's last edge in the coming step (moveToXY would hold it
+        at the end of the network, or of a route that ends there, instead of letting it arrive)."""
+        snap = self.snapshot
+        k = snap.index_of(self.ego_id)
+        if snap.edge_id[k] != self.spec.ego.route[-1]:  # the scenario's route: moveToXY may have replaced it
+            return False
+        remaining = libsumo.lane.getLength(str(snap.lane_id[k])) - float(snap.lane_pos[k])
+        return remaining <= max(state.speed, float(snap.speed[k])) * self.spec.step_s

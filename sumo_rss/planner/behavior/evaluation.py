@@ -81,10 +81,20 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
                                        rss_ego.lat_fluctuation_margin, rss_agents.lat_fluctuation_margin)
     lat_unsafe = ~formulas.is_safe_distance(lat_gap, lat_min)
     front = ds >= 0.0
-    # A rear car already beside-or-behind the ego in its lane at the start is that car's duty (the ego, in
-    # front, owes nothing); the ego is charged for the rear cars it moves in front of. The speed bounds are
-    # computed for the pairs that can be charged only.
-    charged = lat_unsafe & (front | ~lat_unsafe[:, :1])
+    # The ego is charged for every car ahead that it is laterally unsafe to (it is the rear car), and for a rear
+    # car from the sample it cuts in: it makes the pair laterally unsafe while it is longitudinally unsafe (RSS's
+    # lateral trigger). A rear car that becomes unsafe later, or was already beside or behind the ego in its lane
+    # at the start, is that car's duty (a longitudinal trigger). Speed bounds are computed for those pairs only.
+    crossing = np.zeros_like(lat_unsafe)
+    crossing[:, 1:] = lat_unsafe[:, 1:] & ~lat_unsafe[:, :-1] & ~front[:, 1:]
+    cut_in = np.zeros_like(lat_unsafe)
+    if np.any(crossing):
+        r_idx, k_idx, a_idx = np.nonzero(crossing)
+        gap_x = -ds[r_idx, k_idx, a_idx] - 0.5 * (length[0] + length[1:][a_idx])
+        v_low_x = formulas.min_safe_speed_ahead(gap_x, v[r_idx, k_idx, a_idx + 1], rss_ego, rss_agents.take(a_idx))
+        cut_in[r_idx, k_idx, a_idx] = (gap_x < 0.0) | (v[r_idx, k_idx, 0] < v_low_x - 1e-6)
+        cut_in = np.logical_or.accumulate(cut_in, axis=1)
+    charged = lat_unsafe & (front | cut_in)
     penalty = np.zeros(charged.shape[:2])
     if not np.any(charged):
         return penalty

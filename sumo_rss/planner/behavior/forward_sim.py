@@ -10,7 +10,7 @@ Per step and vehicle: pure pursuit on the tracked lane (its target lane; the ego
 a leader search on the tracked lane and on the lane the vehicle is in now, ACC/IIDM on the nearer leader (a lane
 that ends is a stopped leader at its end), the kinematic bicycle with its limits. The ego's lane-change layers
 use the gap-informed controller of §3.5 with the port's fix (the current-lane IDM still applies), the RSS
-evasive speed-up and an RSS virtual barrier (no lateral progress while the gap is not RSS-safe). A rollout whose
+evasive speed-up and an RSS virtual barrier (RSS's cut-in rule, :func:`_lane_change_command`). A rollout whose
 ego box (inflated) meets another vehicle's box is invalid from that step on.
 """
 from __future__ import annotations
@@ -50,6 +50,7 @@ class SimSettings:
     evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe
     inflation: float = 0.1  # [m] added to length and width in the strict collision check
     lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
+    commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,8 +252,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
         if np.any(changing):
-            lc_cmd, barrier = _lane_change_command(s, v, length, gap_front, gap_rear, rss_front, rss_rear, idm, v0,
-                                                   settings, rss_ego, dt)
+            lc_cmd, barrier = _lane_change_command(frame, tracked[:, 0], state, length, width, gap_front, gap_rear,
+                                                   rss_front, rss_rear, idm, v0, settings, rss_ego, dt)
             hold = changing & barrier
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
@@ -337,11 +338,19 @@ def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.
     return np.where(np.isinf(front[rows, f]), -1, f), np.where(np.isinf(rear[rows, r]), -1, r)
 
 
-def _lane_change_command(s: np.ndarray, v: np.ndarray, length: np.ndarray, gap_front: np.ndarray,
-                         gap_rear: np.ndarray, rss_front: Any, rss_rear: Any, idm: IdmParams, v0: np.ndarray,
-                         st: SimSettings, rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, length: np.ndarray,
+                         width: np.ndarray, gap_front: np.ndarray, gap_rear: np.ndarray, rss_front: Any, rss_rear: Any,
+                         idm: IdmParams, v0: np.ndarray, st: SimSettings, rss_ego: Any,
+                         dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back;
-    ``rss_front`` / ``rss_rear``: the RSS parameters of the gap cars (any row where there is none)."""
+    ``target``: the ego's target chain per rollout; ``rss_front`` / ``rss_rear``: the RSS parameters of the gap
+    cars (any row where there is none).
+
+    The barrier is RSS's cut-in rule: the ego may not make a gap car laterally unsafe while that pair is
+    longitudinally unsafe, now or ``commit_time`` s later at constant speeds (the crossing takes time). Once the
+    ego is laterally unsafe to a gap car that was safe when it got there, the pair's duty is longitudinal (the rear
+    car keeps its distance), so the barrier no longer holds the ego half-way."""
+    s, v = state.x, state.speed
     rows = np.arange(s.shape[0])
     has_f, has_r = gap_front >= 0, gap_rear >= 0
     f, r = np.maximum(gap_front, 0), np.maximum(gap_rear, 0)
@@ -369,9 +378,34 @@ def _lane_change_command(s: np.ndarray, v: np.ndarray, length: np.ndarray, gap_f
     # RSS towards the gap cars (bumper gaps): the ego ahead of the rear car, behind the front car.
     gap_to_rear = s_e - half - s_ref_r
     gap_to_front = s_ref_f - s_e - half
+    h = st.commit_time
     v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, rss_rear)
-    v_high = formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, rss_front)
+    v_low_later = formulas.min_safe_speed_ahead(gap_to_rear + (v_e - v_r) * h, v_r, rss_ego, rss_rear)
+    v_high = np.minimum(formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, rss_front),
+                        formulas.max_safe_speed_behind(gap_to_front + (v_f - v_e) * h, v_f, rss_ego, rss_front))
     too_slow = has_r & (v_e < v_low - 1e-6)
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    barrier = too_slow | (has_f & (v_e > v_high + 1e-6))
+    rear_unsafe = has_r & (v_e < np.maximum(v_low, v_low_later) - 1e-6)
+    front_unsafe = has_f & (v_e > v_high + 1e-6)
+    # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
+    three = np.stack([np.zeros_like(f), f, r], axis=1)  # [G, 3] columns
+    s3, h3, v3 = (np.take_along_axis(a, three, axis=1) for a in (s, state.heading, v))
+    v_lat = v3 * np.sin(h3 - frame.slope(target[:, None], s3))
+    d3 = np.take_along_axis(state.y, three, axis=1)
+    barrier = (rear_unsafe & _laterally_clear(d3[:, 0], d3[:, 2], v_lat[:, 0], v_lat[:, 2], width[0], width[r],
+                                              rss_ego, rss_rear)) | \
+        (front_unsafe & _laterally_clear(d3[:, 0], d3[:, 1], v_lat[:, 0], v_lat[:, 1], width[0], width[f], rss_ego,
+                                         rss_front))
     return cmd, barrier
+
+
+def _laterally_clear(d_e: np.ndarray, d_o: np.ndarray, u_e: np.ndarray, u_o: np.ndarray, w_e: float,
+                     w_o: np.ndarray, rss_ego: Any, rss_other: Any) -> np.ndarray:
+    """Whether the ego (offset ``d_e``, lateral speed ``u_e``, + = left) is still laterally RSS-safe from another
+    car (``d_o``, ``u_o``) (rss.md §2)."""
+    ego_left = d_e >= d_o
+    lat_gap = np.abs(d_e - d_o) - 0.5 * (w_e + w_o)
+    u_e, u_o = np.where(ego_left, -u_e, u_e), np.where(ego_left, u_o, -u_o)  # speeds towards the other
+    lat_min = formulas.combine_lateral(formulas.lateral_reach(u_e, rss_ego), formulas.lateral_reach(u_o, rss_other),
+                                       rss_ego.lat_fluctuation_margin, rss_other.lat_fluctuation_margin)
+    return formulas.is_safe_distance(lat_gap, lat_min)
