@@ -171,11 +171,17 @@ def test_batch_spec_errors_name_the_file_and_key(tmp_path):
     assert isinstance(BatchSpec, type)
 
 
+def _default_sigint() -> None:
+    """A shell ignores SIGINT in the commands it starts in the background, and Python then keeps ignoring it: the
+    batch gets the default SIGINT, as an interactive user's has, however the tests were launched."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path):
     out = tmp_path / "out"
     parent = subprocess.Popen([sys.executable, "-m", "sumo_rss", "batch", str(two_scenarios / "batch.toml"),
                                "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
+                              stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
     deadline = time.time() + 120
     while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
         time.sleep(0.05)
