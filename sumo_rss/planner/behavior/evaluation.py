@@ -16,7 +16,7 @@ import numpy as np
 from ...rss import formulas
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult
+from .forward_sim import LEADER_RANGE, SimResult, laterally_safe
 
 
 @dataclass(frozen=True)
@@ -71,15 +71,8 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
     ds = s[..., 1:] - s[..., :1]
     v_lat = v * np.sin(h - frame.slope(sim.chain, s))
-    ego_left = d[..., :1] >= d[..., 1:]
-    lat_gap = np.abs(d[..., 1:] - d[..., :1]) - 0.5 * (width[0] + width[1:])
-    # Each car's lateral speed towards the other, then its worst-case lateral reach (rss.md, Def. 4).
-    towards_ego = np.where(ego_left, -v_lat[..., :1], v_lat[..., :1])
-    towards_agent = np.where(ego_left, v_lat[..., 1:], -v_lat[..., 1:])
-    lat_min = formulas.combine_lateral(formulas.lateral_reach(towards_ego, rss_ego),
-                                       formulas.lateral_reach(towards_agent, rss_agents),
-                                       rss_ego.lat_fluctuation_margin, rss_agents.lat_fluctuation_margin)
-    lat_unsafe = ~formulas.is_safe_distance(lat_gap, lat_min)
+    lat_unsafe = ~laterally_safe(d[..., :1], d[..., 1:], v_lat[..., :1], v_lat[..., 1:], width[0], width[1:],
+                                 rss_ego, rss_agents)
     front = ds >= 0.0
     # The ego is charged for every car ahead that it is laterally unsafe to (it is the rear car), and for a rear
     # car from the sample it cuts in: it makes the pair laterally unsafe while it is longitudinally unsafe (RSS's

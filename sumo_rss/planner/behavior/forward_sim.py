@@ -392,17 +392,17 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     s3, h3, v3 = (np.take_along_axis(a, three, axis=1) for a in (s, state.heading, v))
     v_lat = v3 * np.sin(h3 - frame.slope(target[:, None], s3))
     d3 = np.take_along_axis(state.y, three, axis=1)
-    barrier = (rear_unsafe & _laterally_clear(d3[:, 0], d3[:, 2], v_lat[:, 0], v_lat[:, 2], width[0], width[r],
+    barrier = (rear_unsafe & laterally_safe(d3[:, 0], d3[:, 2], v_lat[:, 0], v_lat[:, 2], width[0], width[r],
                                               rss_ego, rss_rear)) | \
-        (front_unsafe & _laterally_clear(d3[:, 0], d3[:, 1], v_lat[:, 0], v_lat[:, 1], width[0], width[f], rss_ego,
+        (front_unsafe & laterally_safe(d3[:, 0], d3[:, 1], v_lat[:, 0], v_lat[:, 1], width[0], width[f], rss_ego,
                                          rss_front))
     return cmd, barrier
 
 
-def _laterally_clear(d_e: np.ndarray, d_o: np.ndarray, u_e: np.ndarray, u_o: np.ndarray, w_e: float,
-                     w_o: np.ndarray, rss_ego: Any, rss_other: Any) -> np.ndarray:
-    """Whether the ego (offset ``d_e``, lateral speed ``u_e``, + = left) is still laterally RSS-safe from another
-    car (``d_o``, ``u_o``) (rss.md §2)."""
+def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, rss_ego: Any,
+                   rss_other: Any) -> np.ndarray:
+    """Whether the ego (centre offset ``d_e`` [m], lateral speed ``u_e`` [m/s], + = left, width ``w_e``) and
+    another car (``d_o``, ``u_o``, ``w_o``) are laterally RSS-safe (rss.md §2; arrays broadcast)."""
     ego_left = d_e >= d_o
     lat_gap = np.abs(d_e - d_o) - 0.5 * (w_e + w_o)
     u_e, u_o = np.where(ego_left, -u_e, u_e), np.where(ego_left, u_o, -u_o)  # speeds towards the other
