@@ -304,3 +304,27 @@ def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
     penalty = rss_penalty(closer, frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8),
                           CostWeights())
     assert np.all(penalty[0, :onset] == 0.0) and np.all(penalty[0, onset:] > 0.0)
+
+
+def test_a_car_beside_a_bending_ramp_stays_in_its_lane():
+    """The merge ramp bends (by 12° and 4°) where the straight motorway runs beside it. In the ramp's frame the
+    motorway lane bends there too; a motorway car keeping its lane must follow it, not drift across (aiming at
+    the lane beyond the bend, it cut the bend and crossed 3 m into the ramp's lane, and every ego policy
+    'collided' with it)."""
+    net = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["ramp_0"])[0]),
+                                        net.edge_indices(["ramp", "mw_merge", "mw_out"])))
+    x0, y0 = 530.0, -5.25  # on mw_in_0, driving east at 25 m/s, 70 m before the ramp's second bend
+    s, d, rel = frame.to_frame(np.array([x0]), np.array([y0]), np.array([0.0]))
+    vehicles = Vehicles(np.array([100.0, s[0]]), np.array([0.0, d[0]]), np.array([0.0, rel[0]]),
+                        np.array([10.0, 25.0]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.8),
+                        np.array([CURRENT, LEFT]))
+    p = RssParamArrays.stack([RssParams()] * 2)
+    rollouts = _keep(1, 2, layers=8, v0=10.0, chains=np.array([[CURRENT, LEFT]]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 8, SimSettings(), RssParams(), p)
+    s_a, d_a = sim.s[0, :, 1], sim.d[0, :, 1]
+    assert s_a[0] < 319.0 - 50.0 and s_a[-1] > 391.0 + 10.0  # it passes the bend and the ramp's end
+    np.testing.assert_allclose(d_a, frame.centre_d(LEFT, s_a), atol=0.25)
+    # ... and in the world it keeps driving along y = -5.25.
+    _, y, _ = frame.to_world(s_a, d_a, sim.heading[0, :, 1])
+    np.testing.assert_allclose(y, y0, atol=0.25)

@@ -213,6 +213,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             idm_three = _three_leaders(idm, G, n)
             layers_recorded.append((inverse, []))
         s, d, v = state.x, state.y, state.speed
+        if branching:
+            lane_slope = frame.slope(tracked, s)  # direction of each car's tracked lane in the frame [rad]
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
                             width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
                             length[1:] + settings.inflation, width[1:] + settings.inflation)
@@ -259,13 +261,22 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
-            centre_target = frame.centre_d(tracked[:, 0], s[:, 0] + lookahead(v[:, 0], *settings.ego_pursuit))
+            ego_ahead = lookahead(v[:, 0], *settings.ego_pursuit)
+            centre_target = frame.lane_ahead(tracked[:, 0], s[:, 0], ego_ahead)
             target_offset[:, 0] = np.where(hold, d[:, 0] - centre_target, 0.0)
         speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
         ell = lookahead(v, gain, l_min, l_max)
-        target_d = frame.centre_d(tracked, s + ell) + target_offset
+        # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame (a bend of
+        # the lane, or of the frame's centre line beside a straight lane) the car turns with it at once, and pure
+        # pursuit aims along the lane's direction here, correcting only the offset from it. Aiming at the lane
+        # beyond a bend made cars cut it and then overshoot: a motorway car beside the bending on-ramp drifted 3 m
+        # into the ramp's lane in the simulation.
+        target_d = frame.centre_d(tracked, s) + np.tan(lane_slope) * ell + target_offset  # as RoadFrame.lane_ahead
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
-        state = bicycle_step(state, speed_cmd, steer, limits, dt)
+        moved = bicycle_step(state, speed_cmd, steer, limits, dt)
+        slope_reached = frame.slope(tracked, moved.x)
+        state = replace(moved, heading=moved.heading + slope_reached - lane_slope)
+        lane_slope = slope_reached
     # Every rollout's samples: each layer's steps of its prefix (one gather per layer and quantity).
     per_layer = [[np.stack(values, axis=1)[inverse] for values in zip(*steps)] for inverse, steps in layers_recorded]
     s, d, heading, speed, accel, curvature, chain, lead_gap, lead_speed = (
