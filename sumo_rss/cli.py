@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, audit, report, nets.
+"""The ``sumo-rss`` command line: run, batch, audit, report, nets, train-intent.
 
 Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
 ``--debug`` shows the traceback instead.
@@ -38,6 +38,13 @@ _AUDIT_EXAMPLES = """examples:
 _NETS_EXAMPLES = """examples:
   sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
   sumo-rss nets check          # rebuild into a temporary folder and compare with the committed nets
+"""
+_TRAIN_INTENT_EXAMPLES = """examples:
+  sumo-rss train-intent                                   # -> results/intention/intention.pt + intention.json
+  sumo-rss train-intent --train-seeds 0:4 --test-seeds 100,101 --workers 2 --epochs 12
+  sumo-rss train-intent --scenarios scenarios/highway_dense.toml --all-samples --duration 60 --out results/hw
+  sumo-rss train-intent --scenarios scenarios/merge_onramp.toml --duration 120 --out results/merge_intent
+  sumo-rss train-intent --out sumo_rss/planner/intention/weights --reuse-data   # replace the shipped weights
 """
 
 
@@ -141,6 +148,31 @@ def build_parser() -> argparse.ArgumentParser:
                           epilog=_NETS_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     nets.add_argument("action", choices=("build", "check"))
     nets.add_argument("--root", type=Path, help="networks folder (default: the repository's networks/)")
+
+    intent = sub.add_parser("train-intent", parents=[common], help="train the intention estimator",
+                            description="Record labelled intention samples from libsumo runs of the scenarios "
+                                        "(without ego), train the network on CPU, evaluate it against the rule-based "
+                                        "belief on held-out seeds and write intention.pt and its card "
+                                        "intention.json.",
+                            epilog=_TRAIN_INTENT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    intent.add_argument("--scenarios", nargs="+", type=Path, metavar="TOML",
+                        help="scenario files (default: the shipped intersection, merge and highway scenarios)")
+    intent.add_argument("--train-seeds", type=_parse_seeds, default=list(range(10)),
+                        help="A:B (B excluded) or 1,2,3 (default 0:10)")
+    intent.add_argument("--test-seeds", type=_parse_seeds, default=[100, 101, 102],
+                        help="held-out seeds, never trained on (default 100:103)")
+    intent.add_argument("--duration", type=_positive_float, metavar="S",
+                        help="simulated seconds per run (default: the scenario's)")
+    intent.add_argument("--epochs", type=int, default=30, help="training epochs (default 30)")
+    intent.add_argument("--seed", type=_non_negative_int, default=0, help="training seed (default 0)")
+    intent.add_argument("--workers", type=int, default=1, help="parallel SUMO processes for recording (default 1)")
+    intent.add_argument("--all-samples", action="store_true",
+                        help="also record samples where lanes do not branch (CFB uses the rules there)")
+    intent.add_argument("--reuse-data", action="store_true",
+                        help="reuse OUT/train.npz and OUT/test.npz when they were recorded with the same settings")
+    intent.add_argument("--out", type=Path, default=Path("results/intention"),
+                        help="output folder (default: results/intention)")
+    intent.add_argument("--quiet", action="store_true", help="no progress bars")
     return parser
 
 
@@ -260,10 +292,32 @@ def _cmd_nets(args: argparse.Namespace) -> int:
     return 1 if stale else 0
 
 
+def _cmd_train_intent(args: argparse.Namespace) -> int:
+    from .planner.intention.pipeline import DEFAULT_SCENARIOS, DataPlan, summary_lines, train_intent
+    from .planner.intention.train import TrainSettings
+    from .scenario import load_scenario
+
+    shipped = Path(__file__).resolve().parent.parent / "scenarios"
+    paths = args.scenarios or [shipped / f"{name}.toml" for name in DEFAULT_SCENARIOS]
+    for path in paths:
+        load_scenario(path)  # a bad file fails here, naming the file and field, before any run starts
+    if args.epochs < 1:
+        raise SumoRssError(f"--epochs: expected an integer >= 1, got {args.epochs}")
+    if set(args.train_seeds) & set(args.test_seeds):
+        raise SumoRssError(f"--test-seeds must not repeat --train-seeds (both: "
+                           f"{sorted(set(args.train_seeds) & set(args.test_seeds))})")
+    plan = DataPlan(tuple(paths), tuple(args.train_seeds), tuple(args.test_seeds), args.duration, args.all_samples)
+    card = train_intent(plan, args.out, TrainSettings(epochs=args.epochs, seed=args.seed), workers=args.workers,
+                        reuse_data=args.reuse_data, show_progress=not args.quiet)
+    print("\n".join(summary_lines(card)))
+    print(f"weights: {args.out / 'intention.pt'} ({card['weights_bytes']} bytes), card: {args.out / 'intention.json'}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
-               "nets": _cmd_nets}[args.command]
+               "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
         return handler(args)
     except SumoRssError as exc:

@@ -91,6 +91,7 @@ class PlannerOverrides:
     layer_duration_s: float = 1.0
     sim_step_s: float = 0.2  # forward-simulation step
     scenarios_k: int = 4  # CFB: most likely intention combinations kept
+    intention_net: bool = True  # CFB uses the shipped intention network where lanes branch
     rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
 
 
@@ -369,6 +370,7 @@ def _read_planner(t: TableReader) -> PlannerOverrides:
         layer_duration_s=t.number("layer_duration_s", d.layer_duration_s, min=0.1, max=5.0),
         sim_step_s=t.number("sim_step_s", d.sim_step_s, min=0.01, max=1.0),
         scenarios_k=t.integer("scenarios_k", d.scenarios_k, min=1, max=64),
+        intention_net=t.boolean("intention_net", d.intention_net),
         rss_preset=t.string("rss_preset", None, choices=PRESETS) if t.has("rss_preset") else None,
     )
     t.finish()

@@ -23,7 +23,7 @@ def planner_config(spec: ScenarioSpec) -> PlannerConfig:
     o = ego.planner
     return PlannerConfig(desired_speed=ego.desired_speed, layers=o.layers, layer_duration=o.layer_duration_s,
                          sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every,
-                         output_step=spec.step_s)
+                         output_step=spec.step_s, intention_net=o.intention_net)
 
 
 class EgoDriver:
@@ -53,12 +53,14 @@ class EgoDriver:
                                 self._trajectory.state_at(t_next), auditor.owed_by(self.ego_id))
 
     def summary(self) -> dict:
-        """Cycle times [ms], backups, lane changes, guard interventions, chosen policies."""
+        """Cycle times [ms], backups, lane changes, guard interventions, chosen policies, and how many agent
+        beliefs came from the intention network (per cycle and agent)."""
         times = np.array(self.planner.stats.cycle_times) * 1000.0
         stats = {"cycles": int(times.size), "backups": self.planner.stats.backups,
                  "lane_changes_started": self.planner.manager.lane_changes_started,
                  "lane_changes_completed": self.planner.manager.lane_changes_completed,
                  "guard": self.guard.counts.as_dict(),
+                 "intention_net_beliefs": self.planner.stats.learned_beliefs,
                  "policies": dict(sorted(self.policies.items()))}
         if times.size:
             stats |= {"cycle_ms_median": float(np.median(times)), "cycle_ms_p95": float(np.percentile(times, 95)),

@@ -2,10 +2,11 @@
 baseline (§8) as a configuration of the same machinery.
 
 ``plan(snapshot, ego_id)`` builds the planning frame along the ego's route, selects key vehicles, estimates
-their intentions (rule-based belief), branches the uncertain ones that matter (CFB), forward-simulates every
-(policy x scenario) rollout in one vectorised batch, evaluates, reselects by the lane-change context and returns
-the winner's ego trajectory (front-bumper states at absolute times, as SUMO places vehicles). When no policy is
-valid or allowed, the emergency backup (lane keep, braking at the ego's RSS b_min) is executed.
+their intentions (rule-based belief; the intention network where lanes branch), branches the uncertain ones that
+matter (CFB), forward-simulates every (policy x scenario) rollout in one vectorised batch, evaluates, reselects by
+the lane-change context and returns the winner's ego trajectory (front-bumper states at absolute times, as SUMO
+places vehicles). When no policy is valid or allowed, the emergency backup (lane keep, braking at the ego's RSS
+b_min) is executed.
 """
 from __future__ import annotations
 
@@ -24,10 +25,12 @@ from .behavior.cfb import branch_scenarios, uncertain_agents
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.evaluation import CostWeights, Navigation, evaluate
 from .behavior.forward_sim import Rollouts, SimResult, SimSettings, Vehicles, simulate
-from .behavior.intention import intention_probabilities
+from .behavior.intention import rule_belief
 from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
+from .intention.belief import LearnedBelief
+from .intention.estimator import load_estimator
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains
 from .road_frame import RoadFrame
 
@@ -50,6 +53,7 @@ class PlannerConfig:
     scenarios_k: int = 4
     replan_every: int = 1
     output_step: float = 0.1  # [s] sampling of the returned trajectory (the co-simulation step)
+    intention_net: bool = True  # CFB uses the shipped intention network where lanes branch (epsilon mode)
     sim: SimSettings = SimSettings()
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
@@ -77,6 +81,7 @@ class PlanResult:
 @dataclass
 class PlannerStats:
     backups: int = 0
+    learned_beliefs: int = 0  # agent intentions given by the intention network (summed over cycles)
     cycle_times: list[float] = field(default_factory=list)
 
 
@@ -93,12 +98,16 @@ class EpsilonPlanner:
         self.stats = PlannerStats()
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
+        estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
+        self.belief = LearnedBelief(network, estimator) if estimator is not None else None
 
     # -----------------------------------------------------------------------------------------------------
     def plan(self, snapshot: WorldSnapshot, ego_id: str) -> PlanResult:
         cfg = self.config
         clock = time.perf_counter()
         ego = snapshot.index_of(ego_id)
+        if self.belief is not None:
+            self.belief.observe(snapshot)
         frame = self.frame_for(snapshot, ego)
         lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
         now = snapshot.time
@@ -234,13 +243,15 @@ class EpsilonPlanner:
         enterable = frame.exists & ~np.isfinite(frame.end_s)
         has_left = (chain < LEFT) & enterable[np.minimum(chain + 1, LEFT)]
         has_right = (chain > RIGHT) & enterable[np.maximum(chain - 1, RIGHT)]
-        probs = intention_probabilities(key.d, snapshot.lat_speed[key.rows], has_left, has_right)
-        # An agent whose lane ends ahead will change: towards the lane that goes on, surer the nearer the end.
-        to_end = frame.end_s[chain] - key.frame_s
-        urgency = np.clip(1.0 - to_end / 200.0, 0.0, 0.9) * np.isfinite(to_end)
-        shift = np.where(has_left, urgency, 0.0)
-        probs = probs * (1.0 - shift)[:, None]
-        probs[:, 1] += shift
+        probs = rule_belief(key.d, snapshot.lat_speed[key.rows], has_left, has_right, frame.end_s[chain] - key.frame_s)
+        if self.belief is not None and key.rows.size:
+            lanes = self.network.lane_indices(snapshot.lane_id[key.rows])
+            learned, used = self.belief.lateral_probabilities(snapshot, key.rows, lanes)
+            learned *= np.column_stack([np.ones(chain.size, dtype=bool), has_left, has_right])
+            total = learned.sum(axis=1)
+            used &= total > 0.0
+            probs[used] = learned[used] / total[used, None]
+            self.stats.learned_beliefs += int(used.sum())
         return probs
 
     def _rollouts(self, policies: list[Policy], scenarios, key: KeyVehicles, vehicles: Vehicles,

@@ -12,6 +12,8 @@ import numpy as np
 
 OFFSET_MID, OFFSET_SPREAD = 0.4, 0.15  # [m] lateral offset from the lane centre, + = left
 SPEED_MID, SPEED_SPREAD = 0.35, 0.12  # [m/s] lateral speed, + = left
+LANE_END_NOTICE = 200.0  # [m] an agent this near the end of its lane starts to be expected to leave it
+LANE_END_CERTAINTY = 0.9  # the highest probability the lane end alone gives to leaving
 
 
 def _ramp(x: np.ndarray, mid: float, spread: float) -> np.ndarray:
@@ -28,3 +30,15 @@ def intention_probabilities(offset: Any, lat_speed: Any, has_left: Any, has_righ
     keep = np.clip(1.0 - left - right, 0.0, 1.0)
     total = keep + left + right
     return np.column_stack([keep, left, right]) / total[:, None]
+
+
+def rule_belief(offset: Any, lat_speed: Any, has_left: Any, has_right: Any, to_lane_end: Any) -> np.ndarray:
+    """:func:`intention_probabilities`, plus: an agent whose lane ends ``to_lane_end`` [m] ahead (inf: it does
+    not end) will change towards the lane on its left, surer the nearer the end."""
+    probs = intention_probabilities(offset, lat_speed, has_left, has_right)
+    to_end = np.asarray(to_lane_end, dtype=float)
+    urgency = np.clip(1.0 - to_end / LANE_END_NOTICE, 0.0, LANE_END_CERTAINTY) * np.isfinite(to_end)
+    shift = np.where(np.asarray(has_left, dtype=bool), urgency, 0.0)
+    probs = probs * (1.0 - shift)[:, None]
+    probs[:, 1] += shift
+    return probs

@@ -1,0 +1,181 @@
+"""The intention network: masking, determinism, training on real SUMO data, weights and the rule fallback."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+from sumo_rss.planner.intention import dataset, estimator
+from sumo_rss.planner.intention.estimator import SHIPPED_WEIGHTS, load_estimator, save_weights
+from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS, MAX_CANDIDATES
+from sumo_rss.planner.intention.model import ARCHITECTURE, IntentionNet, nll_loss
+from sumo_rss.planner.intention.train import TrainSettings, evaluate, predict, rule_probabilities, train
+from sumo_rss.scenario import load_scenario
+
+from conftest import SCENARIOS
+
+
+def _random_inputs(n: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    g = torch.Generator().manual_seed(seed)
+    history = torch.randn(n, HISTORY_STEPS, HISTORY_FEATURES, generator=g) * 5.0
+    lanes = torch.randn(n, MAX_CANDIDATES, LANE_POINTS, 3, generator=g) * 20.0
+    return history, lanes
+
+
+@pytest.mark.parametrize("candidates", [1, 2, 3, 4, 5, 6])
+def test_probabilities_sum_to_one_over_the_real_candidates_only(candidates):
+    torch.manual_seed(0)
+    net = IntentionNet(**ARCHITECTURE).eval()
+    history, lanes = _random_inputs(4)
+    mask = torch.zeros(4, MAX_CANDIDATES, dtype=torch.bool)
+    mask[:, :candidates] = True
+    with torch.inference_mode():
+        p = torch.exp(net(history, lanes, mask))
+        other_padding = lanes.clone()
+        other_padding[:, candidates:] = 1e3  # whatever the padded lanes hold, they change nothing
+        p2 = torch.exp(net(history, other_padding, mask))
+    assert p.shape == (4, MAX_CANDIDATES)
+    assert torch.allclose(p.sum(dim=1), torch.ones(4, dtype=p.dtype), atol=1e-6)
+    assert torch.all(p[:, candidates:] == 0.0)
+    assert torch.equal(p, p2)
+    if candidates == 1:
+        assert torch.all(p[:, 0] == 1.0)
+
+
+def test_candidates_are_scored_independently_of_their_order():
+    torch.manual_seed(0)
+    net = IntentionNet(**ARCHITECTURE).eval()
+    history, lanes = _random_inputs(3)
+    mask = torch.zeros(3, MAX_CANDIDATES, dtype=torch.bool)
+    mask[:, :3] = True
+    swap = torch.tensor([2, 0, 1, 3, 4, 5])
+    with torch.inference_mode():
+        p, q = torch.exp(net(history, lanes, mask)), torch.exp(net(history, lanes[:, swap], mask[:, swap]))
+    assert torch.allclose(p[:, swap], q, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def merge_samples() -> dict[str, np.ndarray]:
+    """Samples of 150 s of real merge_onramp traffic (no ego), seed 5."""
+    spec = dataclasses.replace(load_scenario(SCENARIOS / "merge_onramp.toml"), ego=None)
+    return dataset.record_run(spec.with_overrides(seed=5, duration_s=150.0))
+
+
+def test_recording_gives_labelled_samples_where_lanes_branch_and_is_deterministic(merge_samples):
+    data = merge_samples
+    n = data["label"].size
+    assert n > 50
+    assert set(data["family"].tolist()) == {"merge"}
+    assert np.all(data["mask"][np.arange(n), data["label"]])  # the label is a real candidate
+    assert np.all(data["mask"].sum(axis=1) >= 2)
+    assert np.all(dataset.lanes_branch(data["lateral"], data["mask"], data["to_lane_end"]))
+    assert np.all(data["history"][:, -1, :2] == 0.0)  # the agent frame's origin is the agent now
+    assert {0, 1} <= set(data["label"].tolist())  # some stay on the acceleration lane a while, some merge
+    spec = dataclasses.replace(load_scenario(SCENARIOS / "merge_onramp.toml"), ego=None)
+    again = dataset.record_run(spec.with_overrides(seed=5, duration_s=150.0))
+    assert all(np.array_equal(data[k], again[k]) for k in dataset.ARRAYS)
+
+
+def test_a_short_training_run_lowers_the_loss_and_is_deterministic(merge_samples):
+    data = merge_samples
+    settings = TrainSettings(epochs=10, batch_size=32, learning_rate=5e-3, seed=3)
+
+    def loss_of(net: IntentionNet) -> float:
+        with torch.inference_mode():
+            return float(nll_loss(net(torch.as_tensor(data["history"]), torch.as_tensor(data["lanes"]),
+                                      torch.as_tensor(data["mask"])), torch.as_tensor(data["label"])))
+
+    torch.manual_seed(settings.seed)
+    untrained = loss_of(IntentionNet(**ARCHITECTURE))
+    net = train(data, settings)
+    assert loss_of(net) < 0.7 * untrained
+    again = train(data, settings)
+    assert all(torch.equal(a, b) for a, b in zip(net.state_dict().values(), again.state_dict().values()))
+    assert np.array_equal(predict(net, data), predict(again, data))  # deterministic inference
+
+
+def test_the_rule_baseline_spreads_each_lateral_class_over_its_candidates():
+    data = {"mask": np.array([[True, True, True, False, False, False]]),
+            "lateral": np.array([[0, 0, 1, 0, 0, 0]], dtype=np.int8),
+            "offset": np.array([0.0]), "lat_speed": np.array([0.0]), "to_lane_end": np.array([np.inf])}
+    p = rule_probabilities(data)[0]
+    assert p[0] == pytest.approx(p[1]) and p[0] + p[1] + p[2] == pytest.approx(1.0)
+    assert p[2] < 0.01 and np.all(p[3:] == 0.0)  # centred and not moving sideways: it keeps its lane
+
+
+def test_weights_round_trip_and_bad_files_fall_back_to_the_rules_with_a_warning(tmp_path):
+    torch.manual_seed(1)
+    net = IntentionNet(**ARCHITECTURE)
+    save_weights(net, ARCHITECTURE, tmp_path / "w.pt")
+    loaded = load_estimator(tmp_path / "w.pt")
+    assert loaded is not None
+    assert all(torch.equal(a, b) for a, b in zip(net.state_dict().values(), loaded.net.state_dict().values()))
+    torch.save({"format": 1, "architecture": {**ARCHITECTURE, "hidden": 32},
+                "state_dict": net.state_dict()}, tmp_path / "shapes.pt")
+    (tmp_path / "junk.pt").write_bytes(b"not a torch file")
+    for bad in ("missing.pt", "shapes.pt", "junk.pt"):
+        with pytest.warns(UserWarning, match="rule-based intention belief"):
+            assert load_estimator(tmp_path / bad) is None
+
+
+def test_the_planner_keeps_the_rules_when_the_weights_are_missing(monkeypatch, tmp_path):
+    from sumo_rss.planner.epsilon import EpsilonPlanner
+    from sumo_rss.road.network import RoadNetwork
+    from sumo_rss.rss.auditor import ParamResolver
+
+    net = RoadNetwork.from_file(load_scenario(SCENARIOS / "merge_onramp.toml").net_file)
+    monkeypatch.setattr(estimator, "SHIPPED_WEIGHTS", tmp_path / "gone.pt")
+    with pytest.warns(UserWarning, match="gone.pt"):
+        planner = EpsilonPlanner(net, ParamResolver("ad_rss"))
+    assert planner.belief is None
+    monkeypatch.undo()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert EpsilonPlanner(net, ParamResolver("ad_rss")).belief is not None  # the shipped weights load
+
+
+def test_the_shipped_weights_are_small_load_safely_and_beat_the_rules_on_held_out_seeds():
+    assert SHIPPED_WEIGHTS.stat().st_size < 2_000_000
+    payload = torch.load(SHIPPED_WEIGHTS, weights_only=True)
+    assert payload["architecture"] == ARCHITECTURE
+    card = json.loads(SHIPPED_WEIGHTS.with_suffix(".json").read_text())
+    assert not set(card["data"]["train_seeds"]) & set(card["data"]["test_seeds"])
+    for family in ("intersection", "merge"):
+        held_out = card["held_out"][family]
+        assert held_out["net"]["accuracy"] > held_out["rule"]["accuracy"]
+
+
+@pytest.mark.parametrize("scenario", ["intersection_priority", "merge_onramp"])
+def test_the_shipped_model_beats_the_rules_on_a_seed_it_never_saw(scenario):
+    card = json.loads(SHIPPED_WEIGHTS.with_suffix(".json").read_text())
+    seed = 777
+    assert seed not in card["data"]["train_seeds"] + card["data"]["test_seeds"]
+    spec = dataclasses.replace(load_scenario(SCENARIOS / f"{scenario}.toml"), ego=None)
+    data = dataset.record_run(spec.with_overrides(seed=seed, duration_s=200.0))
+    metrics = evaluate(load_estimator().net, data)["all"]
+    assert metrics["samples"] > 100
+    assert metrics["net"]["accuracy"] > metrics["rule"]["accuracy"]
+    assert metrics["net"]["nll"] < metrics["rule"]["nll"]
+
+
+def test_a_scenario_can_switch_the_network_off(tmp_path, valid_scenario):
+    from conftest import write_scenario
+
+    from sumo_rss.planner.driver import planner_config
+    from sumo_rss.planner.epsilon import EpsilonPlanner
+    from sumo_rss.road.network import RoadNetwork
+    from sumo_rss.rss.auditor import ParamResolver
+
+    valid_scenario["ego"]["controller"] = "epsilon"
+    valid_scenario["ego"]["planner"] = {"intention_net": False}
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    assert spec.ego.planner.intention_net is False
+    config = planner_config(spec)
+    assert EpsilonPlanner(RoadNetwork.from_file(spec.net_file), ParamResolver("ad_rss"), config).belief is None
+    valid_scenario["ego"]["planner"] = {"intention_net": "yes"}
+    with pytest.raises(Exception, match="intention_net"):
+        load_scenario(write_scenario(tmp_path, valid_scenario))
