@@ -61,6 +61,7 @@ class EgoDriver:
                  "lane_changes_completed": self.planner.manager.lane_changes_completed,
                  "guard": self.guard.counts.as_dict(),
                  "intention_net_beliefs": self.planner.stats.learned_beliefs,
+                 "stop_line_cycles": {k or "none": v for k, v in sorted(self.planner.stats.stop_lines.items())},
                  "policies": dict(sorted(self.policies.items()))}
         if times.size:
             stats |= {"cycle_ms_median": float(np.median(times)), "cycle_ms_p95": float(np.percentile(times, 95)),

@@ -18,6 +18,7 @@ import numpy as np
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
+from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory
@@ -30,6 +31,7 @@ from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.belief import LearnedBelief
+from .junction_rules import stop_line
 from .intention.estimator import load_estimator
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains
 from .road_frame import RoadFrame
@@ -82,6 +84,7 @@ class PlanResult:
 class PlannerStats:
     backups: int = 0
     learned_beliefs: int = 0  # agent intentions given by the intention network (summed over cycles)
+    stop_lines: dict[str, int] = field(default_factory=dict)  # cycles per stop-line reason ('' = none)
     cycle_times: list[float] = field(default_factory=list)
 
 
@@ -98,6 +101,7 @@ class EpsilonPlanner:
         self.stats = PlannerStats()
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
+        self.junctions = JunctionModel.from_file(network.path, network)
         estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
         self.belief = LearnedBelief(network, estimator) if estimator is not None else None
 
@@ -128,9 +132,13 @@ class EpsilonPlanner:
             branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
-        t_setup = time.perf_counter()
         ego_params = _row(params, 0)
-        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step)
+        stop = stop_line(snapshot, ego, self.network, self.junctions, float(ego_params.lon_brake_min),
+                         float(ego_params.lon_brake_max))
+        self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
+        t_setup = time.perf_counter()
+        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
+                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:

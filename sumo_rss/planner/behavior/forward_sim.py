@@ -174,10 +174,12 @@ def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.nda
 
 
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
-             settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2) -> SimResult:
+             settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
+             ego_stop_s: float = np.inf) -> SimResult:
     """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
-    RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier. Rollouts that share
-    a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
+    RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier; ``ego_stop_s`` [m] is a
+    stop line for the ego's front bumper (a stopped leader there: a red light or a yield line). Rollouts that
+    share a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
     tree = prefix_tree(rollouts)
@@ -230,6 +232,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                                (settings.agent_radius, settings.ego_radius))
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
+        if np.isfinite(ego_stop_s):
+            gap_t[:, 0], v_t[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_t[:, 0], v_t[:, 0])
+            gap_c[:, 0], v_c[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_c[:, 0], v_c[:, 0])
         layers_recorded[-1][1].append((s, d, state.heading, v, state.accel, state.curvature, now_chain, gap_t[:, 0],
                                        v_t[:, 0]))
         if k == n_steps:
@@ -239,6 +244,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # The ego's own-lane leader without the waiting margin before a lane end (used once a change is going).
         gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
                                  free_speeds[1, :, :1], 0.0)
+        if np.isfinite(ego_stop_s):
+            gap_go[:, 0], v_go[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_go[:, 0], v_go[:, 0])
         # Three leaders in one call: on the tracked lane, on the current lane, and the ego's 'going' leader.
         gaps = np.concatenate([gap_t.ravel(), gap_c.ravel(), gap_go[:, 0]])
         v_leads = np.concatenate([v_t.ravel(), v_c.ravel(), v_go[:, 0]])
@@ -332,6 +339,14 @@ def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.nda
     end_gap = frame.end_s[chain] - margin - s - 0.5 * length[None, :]
     closer = end_gap < gap
     return np.where(closer, end_gap, gap), np.where(closer, 0.0, v_lead)
+
+
+def _stop_line(stop_s: float, s: np.ndarray, length: float, gap: np.ndarray,
+               v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ego's leader with a stop line at ``stop_s`` (front bumper) as a stopped leader where it is nearer."""
+    line_gap = stop_s - s - 0.5 * length
+    closer = line_gap < gap
+    return np.where(closer, line_gap, gap), np.where(closer, 0.0, v_lead)
 
 
 def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray,

@@ -1,0 +1,91 @@
+"""Stop lines before junctions (red, yellow, yield) on the real intersection networks."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import NETWORKS
+from sumo_rss.planner.junction_rules import NO_STOP, STOP_MARGIN, stop_line
+from sumo_rss.road.junctions import JunctionModel
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.sim.snapshot import WorldSnapshot
+
+B_MIN, B_MAX = 4.0, 8.0
+
+
+def _model(name: str) -> tuple[RoadNetwork, JunctionModel]:
+    net = RoadNetwork.from_file(NETWORKS / name / f"{name}.net.xml")
+    return net, JunctionModel.from_file(net.path, net)
+
+
+def _snapshot(net: RoadNetwork, cars: list[tuple[str, str, float, float, tuple[str, str]]],
+              tls_states: dict[str, str] | None = None) -> WorldSnapshot:
+    """``cars``: (id, lane id, metres before the lane's end, speed, route) on straight approach lanes."""
+    n = len(cars)
+    xs, ys, hs, pos = [], [], [], []
+    for _, lane_id, before, _, _ in cars:
+        k = int(net.lane_indices([lane_id])[0])
+        end, prev = net.shapes.points[k, net.shapes.count[k] - 1], net.shapes.points[k, net.shapes.count[k] - 2]
+        u = (end - prev) / np.linalg.norm(end - prev)
+        p = end - before * u
+        xs.append(p[0])
+        ys.append(p[1])
+        hs.append(np.arctan2(u[1], u[0]))
+        pos.append(net.lane_length[k] - before)
+    z = np.zeros(n)
+    return WorldSnapshot(time=10.0, ids=np.array([c[0] for c in cars]), x=np.array(xs), y=np.array(ys),
+                         heading=np.array(hs), speed=np.array([c[3] for c in cars], float), accel=z, lat_speed=z,
+                         length=np.full(n, 4.5), width=np.full(n, 1.8), lane_id=np.array([c[1] for c in cars]),
+                         edge_id=np.array([c[1].rsplit("_", 1)[0] for c in cars]), lane_index=np.zeros(n, int),
+                         lane_pos=np.array(pos), lat_pos=z, vclass=np.array(["ego"] + ["background"] * (n - 1)),
+                         vtype=np.full(n, "car"), signals=np.zeros(n, int), route_index=np.zeros(n, int),
+                         route_edges=tuple(c[4] for c in cars), tls_states=tls_states)
+
+
+def _signal(net: RoadNetwork, junctions: JunctionModel, lane_id: str, to_edge: str, state: str) -> dict[str, str]:
+    """Every signal green ('G') except the link from ``lane_id`` to ``to_edge``, which shows ``state``."""
+    lane = int(net.lane_indices([lane_id])[0])
+    link = next(k for k in junctions.lane_links[lane] if k >= 0 and
+                junctions.link_to_edge[k] == net.edge_indices([to_edge])[0])
+    tls, index = str(junctions.link_tls[link]), int(junctions.link_tls_index[link])
+    size = 1 + max(int(i) for i, t in zip(junctions.link_tls_index, junctions.link_tls) if t == tls)
+    return {tls: "".join(state if i == index else "G" for i in range(size))}
+
+
+def test_red_stops_the_ego_at_the_line_and_green_does_not():
+    net, junctions = _model("intersection_tls")
+    ego = ("ego", "S_in_0", 50.0, 10.0, ("S_in", "N_out"))
+    red = stop_line(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "r")), 0, net, junctions,
+                    B_MIN, B_MAX)
+    assert red.reason == "red" and red.distance == pytest.approx(50.0 - STOP_MARGIN, abs=1e-6)
+    assert stop_line(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "G")), 0, net, junctions,
+                     B_MIN, B_MAX) == NO_STOP
+
+
+def test_yellow_stops_the_ego_only_where_it_can_stop_at_b_min_and_red_only_where_it_can_at_b_max():
+    net, junctions = _model("intersection_tls")
+    yellow = _signal(net, junctions, "S_in_0", "N_out", "y")
+    red = _signal(net, junctions, "S_in_0", "N_out", "r")
+    # 14 m/s: stopping takes 24.5 m at b_min and 12.25 m at b_max (+ the 1 m margin before the line).
+    assert stop_line(_snapshot(net, [("ego", "S_in_0", 40.0, 14.0, ("S_in", "N_out"))], yellow), 0, net, junctions,
+                     B_MIN, B_MAX).reason == "yellow"
+    assert stop_line(_snapshot(net, [("ego", "S_in_0", 20.0, 14.0, ("S_in", "N_out"))], yellow), 0, net, junctions,
+                     B_MIN, B_MAX) == NO_STOP
+    assert stop_line(_snapshot(net, [("ego", "S_in_0", 20.0, 14.0, ("S_in", "N_out"))], red), 0, net, junctions,
+                     B_MIN, B_MAX).reason == "red"
+    assert stop_line(_snapshot(net, [("ego", "S_in_0", 10.0, 14.0, ("S_in", "N_out"))], red), 0, net, junctions,
+                     B_MIN, B_MAX) == NO_STOP  # too late to stop: it drives on
+
+
+def test_the_minor_road_yields_to_a_major_road_car_that_arrives_in_time():
+    net, junctions = _model("intersection_priority")
+    ego = ("ego", "S_in_0", 30.0, 8.0, ("S_in", "J_N"))  # minor road, straight across
+    near = ("major", "E_in_0", 60.0, 14.0, ("E_in", "J_W"))  # major road, straight: ~4 s from the crossing
+    far = ("major", "E_in_0", 280.0, 14.0, ("E_in", "J_W"))  # ~20 s away: the ego crosses first
+    assert stop_line(_snapshot(net, [ego, near]), 0, net, junctions, B_MIN, B_MAX).reason == "yield"
+    assert stop_line(_snapshot(net, [ego, far]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
+    assert stop_line(_snapshot(net, [ego]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
+    # The major road does not yield to the minor one.
+    major_ego = ("ego", "E_in_0", 60.0, 14.0, ("E_in", "J_W"))
+    minor = ("minor", "S_in_0", 30.0, 8.0, ("S_in", "J_N"))
+    assert stop_line(_snapshot(net, [major_ego, minor]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
