@@ -3,7 +3,8 @@ of ad_rss's ProperResponse / CARLA's RssRestrictor.
 
 Before the planned state for the next step is sent to SUMO it is restricted by
 - the responses the ego owes in its open RSS episodes (from the auditor): no more than a_acc during ρ, at least
-  b_min (b_corr) braking after ρ until stopped, never harder than b_max where the ego is the front car, and a
+  b_min (b_corr) braking after ρ until stopped and then no moving off while the episode lasts (it would owe
+  braking again at once), never harder than b_max where the ego is the front car, and a
   lateral speed towards the other car inside its braking envelope;
 - two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
   gap to a car ahead in its path is not RSS-safe, and no lateral motion that would make a pair laterally unsafe
@@ -83,6 +84,8 @@ class ProperResponseGuard:
         if np.any(late) and v0 >= STOPPED:
             brake = np.where(owed.brake_correct[late], p_e.lon_brake_min_correct[0], p_e.lon_brake_min[0])
             upper = min(upper, -float(brake.max()) - ACCEL_MARGIN)
+        elif np.any(late):  # stopped while braking is owed: it stays stopped (moving off would owe b_min again)
+            upper = min(upper, 0.0)
         if np.any(owed.front_limited):
             lower = -float(p_e.lon_brake_max[0]) + ACCEL_MARGIN
         limited = float(np.clip(accel, lower, max(upper, lower)))

@@ -1,0 +1,51 @@
+"""The RSS proper-response guard on the executed ego command (rss.md §5 restrictions)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import NETWORKS
+from sumo_rss.planner.guard import ProperResponseGuard
+from sumo_rss.planner.lanes import lane_chains
+from sumo_rss.planner.road_frame import RoadFrame
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import ParamResolver
+from sumo_rss.rss.responsibility import OwedResponses
+from sumo_rss.sim.snapshot import WorldSnapshot
+from sumo_rss.trajectory import TrajectoryState
+
+DT = 0.1
+
+
+@pytest.fixture(scope="module")
+def frame():
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    return RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
+
+
+def _ego_alone(speed: float) -> WorldSnapshot:
+    one = np.zeros(1)
+    return WorldSnapshot(time=20.0, ids=np.array(["ego"]), x=np.array([300.0]), y=np.array([-5.25]), heading=one,
+                         speed=np.array([speed]), accel=one, lat_speed=one, length=np.array([4.5]),
+                         width=np.array([1.8]), lane_id=np.array(["hw0_1"]), edge_id=np.array(["hw0"]),
+                         lane_index=np.ones(1, int), lane_pos=np.array([300.0]), lat_pos=one,
+                         vclass=np.array(["ego"]), vtype=np.array(["car"]), signals=np.zeros(1, int),
+                         route_index=np.zeros(1, int))
+
+
+def _owing_brake(t_b: float) -> OwedResponses:
+    no = np.zeros(1, dtype=bool)
+    return OwedResponses(np.array([t_b]), np.ones(1, dtype=bool), no, no, no, no, np.zeros(1))
+
+
+def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_stays_stopped(frame):
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)  # ad_rss: ρ = 1 s, b_min = 4 m/s²
+    owed = _owing_brake(t_b=15.0)  # 5 s ago: braking is owed now
+    moving = guard.apply(_ego_alone(5.0), 0, frame, TrajectoryState(300.6, -5.25, 0.0, 5.5, 5.0), owed)
+    assert moving.accel <= -4.0 and moving.speed == pytest.approx(5.0 - 4.1 * DT)
+    stopped = guard.apply(_ego_alone(0.0), 0, frame, TrajectoryState(300.01, -5.25, 0.0, 0.3, 3.0), owed)
+    assert stopped.speed == 0.0  # moving off would owe b_min braking again at once
+    free = guard.apply(_ego_alone(0.0), 0, frame, TrajectoryState(300.01, -5.25, 0.0, 0.3, 3.0),
+                       OwedResponses(*(np.zeros(0, dtype=a.dtype) for a in vars(owed).values())))
+    assert free.speed == pytest.approx(0.3)  # nothing owed: it may go
+    assert guard.counts.lon_owed == 2
