@@ -82,6 +82,16 @@ def test_smoke_epsilon_ego_drives_safely(tmp_path):
     _assert_on_acceleration_lane_not_past_its_end(runs)
 
 
+@pytest.mark.slow
+def test_smoke_epsilon_ego_stops_for_red_and_yields_at_junctions(tmp_path):
+    """Without the stop-line rule the ego ran red lights into crossing traffic (intersection_tls seed 0 collided
+    at 98.6 s) and, once stopped, crept off while it owed braking."""
+    for name in ("intersection_tls", "intersection_priority"):
+        summaries = _assert_safe(_epsilon_batch(name, 150.0, tmp_path / name, SMOKE_SEEDS))
+        assert all(s["planner"]["stop_line_cycles"].get("red" if name == "intersection_tls" else "yield", 0) > 0
+                   for s in summaries)
+
+
 @pytest.fixture(scope="module")
 def highway_runs(tmp_path_factory):
     return _epsilon_batch("highway_dense", 90.0, tmp_path_factory.mktemp("highway"), ACCEPTANCE_SEEDS)
