@@ -8,6 +8,7 @@ from conftest import NETWORKS
 from sumo_rss.planner.junction_rules import NO_STOP, STOP_MARGIN, stop_line
 from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.network import RoadNetwork
+from sumo_rss.road.routes import RouteTable
 from sumo_rss.sim.snapshot import WorldSnapshot
 
 B_MIN, B_MAX = 4.0, 8.0
@@ -42,6 +43,11 @@ def _snapshot(net: RoadNetwork, cars: list[tuple[str, str, float, float, tuple[s
                          route_edges=tuple(c[4] for c in cars), tls_states=tls_states)
 
 
+def _stop(snapshot: WorldSnapshot, net: RoadNetwork, junctions: JunctionModel):
+    """The stop line of the ego (row 0) with ad_rss braking."""
+    return stop_line(snapshot, 0, net, junctions, RouteTable(net), B_MIN, B_MAX)
+
+
 def _signal(net: RoadNetwork, junctions: JunctionModel, lane_id: str, to_edge: str, state: str) -> dict[str, str]:
     """Every signal green ('G') except the link from ``lane_id`` to ``to_edge``, which shows ``state``."""
     lane = int(net.lane_indices([lane_id])[0])
@@ -55,11 +61,9 @@ def _signal(net: RoadNetwork, junctions: JunctionModel, lane_id: str, to_edge: s
 def test_red_stops_the_ego_at_the_line_and_green_does_not():
     net, junctions = _model("intersection_tls")
     ego = ("ego", "S_in_0", 50.0, 10.0, ("S_in", "N_out"))
-    red = stop_line(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "r")), 0, net, junctions,
-                    B_MIN, B_MAX)
+    red = _stop(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "r")), net, junctions)
     assert red.reason == "red" and red.distance == pytest.approx(50.0 - STOP_MARGIN, abs=1e-6)
-    assert stop_line(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "G")), 0, net, junctions,
-                     B_MIN, B_MAX) == NO_STOP
+    assert _stop(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "G")), net, junctions) == NO_STOP
 
 
 def test_yellow_stops_the_ego_only_where_it_can_stop_at_b_min_and_red_only_where_it_can_at_b_max():
@@ -67,14 +71,14 @@ def test_yellow_stops_the_ego_only_where_it_can_stop_at_b_min_and_red_only_where
     yellow = _signal(net, junctions, "S_in_0", "N_out", "y")
     red = _signal(net, junctions, "S_in_0", "N_out", "r")
     # 14 m/s: stopping takes 24.5 m at b_min and 12.25 m at b_max (+ the 1 m margin before the line).
-    assert stop_line(_snapshot(net, [("ego", "S_in_0", 40.0, 14.0, ("S_in", "N_out"))], yellow), 0, net, junctions,
-                     B_MIN, B_MAX).reason == "yellow"
-    assert stop_line(_snapshot(net, [("ego", "S_in_0", 20.0, 14.0, ("S_in", "N_out"))], yellow), 0, net, junctions,
-                     B_MIN, B_MAX) == NO_STOP
-    assert stop_line(_snapshot(net, [("ego", "S_in_0", 20.0, 14.0, ("S_in", "N_out"))], red), 0, net, junctions,
-                     B_MIN, B_MAX).reason == "red"
-    assert stop_line(_snapshot(net, [("ego", "S_in_0", 10.0, 14.0, ("S_in", "N_out"))], red), 0, net, junctions,
-                     B_MIN, B_MAX) == NO_STOP  # too late to stop: it drives on
+
+    def at(before: float, signal: dict[str, str]):
+        return _stop(_snapshot(net, [("ego", "S_in_0", before, 14.0, ("S_in", "N_out"))], signal), net, junctions)
+
+    assert at(40.0, yellow).reason == "yellow"
+    assert at(20.0, yellow) == NO_STOP
+    assert at(20.0, red).reason == "red"
+    assert at(10.0, red) == NO_STOP  # too late to stop: it drives on
 
 
 def test_the_minor_road_yields_to_a_major_road_car_that_arrives_in_time():
@@ -82,10 +86,10 @@ def test_the_minor_road_yields_to_a_major_road_car_that_arrives_in_time():
     ego = ("ego", "S_in_0", 30.0, 8.0, ("S_in", "J_N"))  # minor road, straight across
     near = ("major", "E_in_0", 60.0, 14.0, ("E_in", "J_W"))  # major road, straight: ~4 s from the crossing
     far = ("major", "E_in_0", 280.0, 14.0, ("E_in", "J_W"))  # ~20 s away: the ego crosses first
-    assert stop_line(_snapshot(net, [ego, near]), 0, net, junctions, B_MIN, B_MAX).reason == "yield"
-    assert stop_line(_snapshot(net, [ego, far]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
-    assert stop_line(_snapshot(net, [ego]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
+    assert _stop(_snapshot(net, [ego, near]), net, junctions).reason == "yield"
+    assert _stop(_snapshot(net, [ego, far]), net, junctions) == NO_STOP
+    assert _stop(_snapshot(net, [ego]), net, junctions) == NO_STOP
     # The major road does not yield to the minor one.
     major_ego = ("ego", "E_in_0", 60.0, 14.0, ("E_in", "J_W"))
     minor = ("minor", "S_in_0", 30.0, 8.0, ("S_in", "J_N"))
-    assert stop_line(_snapshot(net, [major_ego, minor]), 0, net, junctions, B_MIN, B_MAX) == NO_STOP
+    assert _stop(_snapshot(net, [major_ego, minor]), net, junctions) == NO_STOP

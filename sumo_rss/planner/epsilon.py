@@ -20,6 +20,7 @@ from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
+from ..road.routes import RouteTable
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory
 from .behavior.cfb import branch_scenarios, uncertain_agents
@@ -102,6 +103,7 @@ class EpsilonPlanner:
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
         self.junctions = JunctionModel.from_file(network.path, network)
+        self.routes = RouteTable(network)
         estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
         self.belief = LearnedBelief(network, estimator) if estimator is not None else None
 
@@ -133,7 +135,7 @@ class EpsilonPlanner:
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
         ego_params = _row(params, 0)
-        stop = stop_line(snapshot, ego, self.network, self.junctions, float(ego_params.lon_brake_min),
+        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, float(ego_params.lon_brake_min),
                          float(ego_params.lon_brake_max))
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()

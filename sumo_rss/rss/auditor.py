@@ -15,6 +15,7 @@ import pandas as pd
 from ..files import write_csv
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
+from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
 from .responsibility import OwedResponses, ResponsibilityTracker, StepInput
@@ -115,15 +116,14 @@ class Auditor:
         self.pair_steps = 0
         self._tracker = ResponsibilityTracker(run_id)
         self._uid: dict[str, int] = {}
-        self._route_ids: dict[tuple[str, ...] | None, int] = {}
-        self._route_matrix = np.full((0, 1), -1, dtype=int)
+        self._routes = RouteTable(network)
         self._prev_ids: set[str] = set()
         self._collisions: list[dict] = []
 
     def observe(self, snapshot: WorldSnapshot, collisions: Iterable[CollisionInput] = ()) -> PairSituations:
         """Audit one step; returns the evaluated pairs (for inspection)."""
         params = self.params.arrays(snapshot)
-        frame = vehicle_frame(snapshot, self.network, params, self._remaining_routes(snapshot))
+        frame = vehicle_frame(snapshot, self.network, params, self._routes.remaining(snapshot))
         road = evaluate(snapshot, frame, self.network)
         uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
@@ -198,29 +198,6 @@ class Auditor:
         self._collisions.append({"run_id": self.run_id, "time_s": c.time, "collider": c.collider,
                                  "victim": c.victim, "sumo_type": c.kind, "blamed": blamed,
                                  "episode_key": episode_key})
-
-    def _remaining_routes(self, snapshot: WorldSnapshot) -> np.ndarray:
-        """[n, k] edge indices of each vehicle's remaining route, -1 padded (all -1 where unknown)."""
-        n = len(snapshot)
-        routes = snapshot.route_edges or (None,) * n
-        ids = np.fromiter((self._route_id(r) for r in routes), dtype=int, count=n)
-        table = self._route_matrix[ids]
-        passed = np.arange(table.shape[1])[None, :] < snapshot.route_index[:, None]
-        return np.where(passed, -1, table)
-
-    def _route_id(self, route: tuple[str, ...] | None) -> int:
-        """Row of ``route`` (edge indices, -1 padded) in the route matrix, added on first sight."""
-        key = route or None
-        row = self._route_ids.get(key)
-        if row is None:
-            edges = self.network.edge_indices(key) if key else np.zeros(0, dtype=int)
-            width = max(self._route_matrix.shape[1], len(edges), 1)
-            matrix = np.full((self._route_matrix.shape[0] + 1, width), -1, dtype=int)
-            matrix[:-1, : self._route_matrix.shape[1]] = self._route_matrix
-            matrix[-1, : len(edges)] = edges
-            self._route_matrix, row = matrix, matrix.shape[0] - 1
-            self._route_ids[key] = row
-        return row
 
     def finish(self) -> AuditResult:
         self._tracker.finish()

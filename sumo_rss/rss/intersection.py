@@ -125,24 +125,32 @@ def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
     return np.where(has, route_edges[np.arange(len(edge)), idx + 1], -1)
 
 
-def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
-                            junctions: JunctionModel, horizon: float) -> PairSituations:
-    """Every pair of vehicles whose links through a junction share a conflict area, one situation per pair and
-    area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
-    on an approach lane with the link to their route's next edge (every link from their lane when the route is
-    unknown), or already on the link's internal lanes."""
-    lane = frame.lane
-    # Entries (vehicle row, link, front bumper position along the link's path [m], negative before it).
+def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray, network: RoadNetwork,
+                     junctions: JunctionModel, horizon: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
+    [m], negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane
+    within ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its
+    lane where that is unknown, -1)."""
     inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
-    to_end = network.lane_length[lane] - snapshot.lane_pos
-    next_edge = next_route_edge(frame.route_edges, frame.edge)
+    to_end = network.lane_length[lane] - lane_pos
     cand = junctions.lane_links[lane]
     ok = (cand >= 0) & (to_end[:, None] <= horizon) & \
         ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
     r, c = np.nonzero(ok)
     rows = np.concatenate([inside, r])
     links = np.concatenate([junctions.lane_link[lane[inside]], cand[r, c]])
-    pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + snapshot.lane_pos[inside], -to_end[r]])
+    pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + lane_pos[inside], -to_end[r]])
+    return rows, links, pos
+
+
+def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
+                            junctions: JunctionModel, horizon: float) -> PairSituations:
+    """Every pair of vehicles whose links through a junction share a conflict area, one situation per pair and
+    area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
+    on an approach lane with the link to their route's next edge (every link from their lane when the route is
+    unknown), or already on the link's internal lanes."""
+    rows, links, pos = junction_entries(frame.lane, snapshot.lane_pos, next_route_edge(frame.route_edges, frame.edge),
+                                        network, junctions, horizon)
     i, j = np.triu_indices(len(rows), 1)
     share = (junctions.area_index[links[i], links[j]] >= 0) & (rows[i] != rows[j])
     i, j = i[share], j[share]
