@@ -32,8 +32,8 @@ from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.belief import LearnedBelief
-from .junction_rules import stop_line
 from .intention.estimator import load_estimator
+from .junction_rules import stop_line
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains
 from .road_frame import RoadFrame
 

@@ -100,10 +100,11 @@ class RoadFrame:
         i, _ = self._grid(s)
         return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * self.slope_grid.shape[1] + i)
 
-    def lane_ahead(self, chain: Any, s: Any, ahead: Any) -> np.ndarray:
-        """d [m] of ``chain``'s centre line ``ahead`` [m] beyond ``s``, continued straight along its direction at
-        ``s`` (the pure-pursuit target of a car on that lane: bends are taken when reached, not anticipated)."""
-        return self.centre_d(chain, s) + np.tan(self.slope(chain, s)) * ahead
+    def lane_ahead(self, chain: Any, s: Any, slope: Any, ahead: Any) -> np.ndarray:
+        """d [m] of ``chain``'s centre line ``ahead`` [m] beyond ``s``, continued straight along its direction
+        ``slope`` = :meth:`slope` (chain, s) [rad] (the pure-pursuit target of a car on that lane: bends are taken
+        when reached, not anticipated)."""
+        return self.centre_d(chain, s) + np.tan(slope) * ahead
 
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""

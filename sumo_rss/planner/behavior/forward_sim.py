@@ -258,6 +258,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         cmd_t, cmd_c, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n:2 * G * n].reshape(G, n), cmd[2 * G * n:]
         speed_cmd = np.minimum(cmd_t, cmd_c)
         target_offset = np.zeros((G, n))
+        ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
         if np.any(changing):
@@ -268,17 +269,15 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
-            ego_ahead = lookahead(v[:, 0], *settings.ego_pursuit)
-            centre_target = frame.lane_ahead(tracked[:, 0], s[:, 0], ego_ahead)
+            centre_target = frame.lane_ahead(tracked[:, 0], s[:, 0], lane_slope[:, 0], ell[:, 0])
             target_offset[:, 0] = np.where(hold, d[:, 0] - centre_target, 0.0)
         speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
-        ell = lookahead(v, gain, l_min, l_max)
         # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame (a bend of
         # the lane, or of the frame's centre line beside a straight lane) the car turns with it at once, and pure
         # pursuit aims along the lane's direction here, correcting only the offset from it. Aiming at the lane
         # beyond a bend made cars cut it and then overshoot: a motorway car beside the bending on-ramp drifted 3 m
         # into the ramp's lane in the simulation.
-        target_d = frame.centre_d(tracked, s) + np.tan(lane_slope) * ell + target_offset  # as RoadFrame.lane_ahead
+        target_d = frame.lane_ahead(tracked, s, lane_slope, ell) + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         moved = bicycle_step(state, speed_cmd, steer, limits, dt)
         slope_reached = frame.slope(tracked, moved.x)
