@@ -13,7 +13,7 @@ import numpy as np
 import torch
 
 from .features import Candidates
-from .model import IntentionNet
+from .model import IntentionNet, candidate_probabilities
 
 FORMAT = 1
 SHIPPED_WEIGHTS = Path(__file__).with_name("weights") / "intention.pt"
@@ -26,17 +26,11 @@ class IntentionEstimator:
         self.net = net.eval()
 
     def probabilities(self, history: np.ndarray, candidates: Candidates) -> np.ndarray:
-        """[n, C] probabilities of each agent's candidates (0 where padded); ``history`` [n, T, 2] [m]."""
-        if history.shape[0] == 0:
-            return np.zeros(candidates.mask.shape)
-        width = int(candidates.mask.sum(axis=1).max())  # real candidates come first: skip all-padding columns
-        with torch.inference_mode():
-            log_p = self.net(torch.as_tensor(history, dtype=torch.float32),
-                             torch.as_tensor(candidates.lanes[:, :width], dtype=torch.float32),
-                             torch.as_tensor(candidates.mask[:, :width]))
-        probs = np.zeros(candidates.mask.shape)
-        probs[:, :width] = np.exp(log_p.double().numpy())
-        return probs
+        """[n, C] probabilities of each agent's candidates (0 where padded); ``history`` [n, T, HISTORY_FEATURES]
+        (features.history_in_agent_frame)."""
+        return candidate_probabilities(self.net, torch.as_tensor(history, dtype=torch.float32),
+                                       torch.as_tensor(candidates.lanes, dtype=torch.float32),
+                                       torch.as_tensor(candidates.mask))
 
 
 def save_weights(net: IntentionNet, architecture: dict, path: Path) -> None:

@@ -11,6 +11,7 @@ Positions are in metres in the agent's frame and are scaled inside the network (
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -52,3 +53,20 @@ class IntentionNet(nn.Module):
 def nll_loss(log_probs: torch.Tensor, label: torch.Tensor) -> torch.Tensor:
     """Mean negative log-likelihood of the labelled candidates."""
     return -log_probs.gather(1, label[:, None]).mean()
+
+
+def real_width(mask: torch.Tensor) -> int:
+    """Candidate columns up to the widest row's last real one (real candidates come first, padding after)."""
+    return int(mask.sum(dim=1).max())
+
+
+def candidate_probabilities(net: IntentionNet, history: torch.Tensor, lanes: torch.Tensor,
+                            mask: torch.Tensor) -> np.ndarray:
+    """[n, C] P(candidate) as float64 (0 on padding), the network run on the real columns only."""
+    probs = np.zeros(tuple(mask.shape))
+    if mask.shape[0] == 0:
+        return probs
+    width = real_width(mask)
+    with torch.inference_mode():
+        probs[:, :width] = torch.exp(net(history, lanes[:, :width], mask[:, :width])).double().numpy()
+    return probs

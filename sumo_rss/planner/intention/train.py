@@ -16,7 +16,7 @@ import torch
 
 from ..behavior.intention import rule_belief
 from .features import LEFT, RIGHT
-from .model import ARCHITECTURE, IntentionNet, nll_loss
+from .model import ARCHITECTURE, IntentionNet, candidate_probabilities, nll_loss, real_width
 
 PROBABILITY_FLOOR = 1e-6  # NLL of a zero probability is reported as -log of this
 
@@ -58,7 +58,7 @@ def train(data: dict[str, np.ndarray], settings: TrainSettings = TrainSettings()
     for _ in range(settings.epochs):
         net.train()
         for batch in torch.randperm(label.shape[0], generator=generator).split(settings.batch_size):
-            width = int(mask[batch].sum(dim=1).max())  # real candidates come first: drop all-padding columns
+            width = real_width(mask[batch])
             loss = nll_loss(net(history[batch], lanes[batch, :width], mask[batch, :width]), label[batch])
             optimiser.zero_grad()
             loss.backward()
@@ -76,14 +76,8 @@ def batches_per_epoch(samples: int, settings: TrainSettings) -> int:
 def predict(net: IntentionNet, data: dict[str, np.ndarray], batch_size: int = 2048) -> np.ndarray:
     """[n, C] probabilities of the network for every sample."""
     history, lanes, mask, _ = _tensors(data)
-    out = []
-    with torch.inference_mode():
-        for start in range(0, history.shape[0], batch_size):
-            part = slice(start, start + batch_size)
-            width = int(mask[part].sum(dim=1).max())
-            probs = torch.zeros(mask[part].shape, dtype=torch.float64)
-            probs[:, :width] = torch.exp(net(history[part], lanes[part, :width], mask[part, :width])).double()
-            out.append(probs.numpy())
+    parts = [slice(start, start + batch_size) for start in range(0, history.shape[0], batch_size)]
+    out = [candidate_probabilities(net, history[part], lanes[part], mask[part]) for part in parts]
     return np.concatenate(out) if out else np.zeros(data["mask"].shape)
 
 
