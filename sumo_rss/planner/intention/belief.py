@@ -33,7 +33,8 @@ class LearnedBelief:
     def observe(self, snapshot: WorldSnapshot) -> None:
         """Remember every vehicle's position and signals at ``snapshot.time``; forget the vehicles that have left."""
         ids = snapshot.ids.tolist()
-        kept = {vid: row for vid, row in self._row.items() if vid in set(ids)}
+        present = set(ids)
+        kept = {vid: row for vid, row in self._row.items() if vid in present}
         free = sorted(set(range(self._memory.shape[0])) - set(kept.values()))
         new = [vid for vid in ids if vid not in kept]
         if len(new) > len(free):
