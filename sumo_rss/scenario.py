@@ -92,6 +92,7 @@ class PlannerOverrides:
     sim_step_s: float = 0.2  # forward-simulation step
     scenarios_k: int = 4  # CFB: most likely intention combinations kept
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch
+    motion_layer: bool = True  # SSC corridor + Bézier QP; False executes the behaviour trajectory
     rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
 
 
@@ -371,6 +372,7 @@ def _read_planner(t: TableReader) -> PlannerOverrides:
         sim_step_s=t.number("sim_step_s", d.sim_step_s, min=0.01, max=1.0),
         scenarios_k=t.integer("scenarios_k", d.scenarios_k, min=1, max=64),
         intention_net=t.boolean("intention_net", d.intention_net),
+        motion_layer=t.boolean("motion_layer", d.motion_layer),
         rss_preset=t.string("rss_preset", None, choices=PRESETS) if t.has("rss_preset") else None,
     )
     t.finish()

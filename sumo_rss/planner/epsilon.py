@@ -4,9 +4,9 @@ baseline (§8) as a configuration of the same machinery.
 ``plan(snapshot, ego_id)`` builds the planning frame along the ego's route, selects key vehicles, estimates
 their intentions (rule-based belief; the intention network where lanes branch), branches the uncertain ones that
 matter (CFB), forward-simulates every (policy x scenario) rollout in one vectorised batch, evaluates, reselects by
-the lane-change context and returns the winner's ego trajectory (front-bumper states at absolute times, as SUMO
-places vehicles). When no policy is valid or allowed, the emergency backup (lane keep, braking at the ego's RSS
-b_min) is executed.
+the lane-change context and hands the winner to the motion layer (:mod:`.motion.ssc`), which returns the ego
+trajectory (front-bumper states at absolute times, as SUMO places vehicles). When no policy is valid or allowed,
+the emergency backup (lane keep, braking at the ego's RSS b_min) is executed.
 """
 from __future__ import annotations
 
@@ -35,6 +35,8 @@ from .intention.belief import LearnedBelief
 from .intention.estimator import load_estimator
 from .junction_rules import stop_line
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains
+from .motion.frenet_plan import FrenetPlan, from_samples
+from .motion.ssc import MotionInput, MotionLayer, MotionSettings
 from .road_frame import RoadFrame
 
 MODES = ("epsilon", "mpdm")
@@ -60,19 +62,22 @@ class PlannerConfig:
     sim: SimSettings = SimSettings()
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
+    motion: MotionSettings = MotionSettings()
 
     @classmethod
     def mpdm(cls, desired_speed: float) -> PlannerConfig:
         """The MPDM baseline: 3 lateral policies at constant speed command, one scenario, 4 s at 0.4 s."""
         return cls(mode="mpdm", desired_speed=desired_speed, layers=4, sim_step=0.4, scenarios_k=1,
-                   manager=ManagerSettings(consistency_frames=2, min_operation_delay=0.0))
+                   manager=ManagerSettings(consistency_frames=2, min_operation_delay=0.0),
+                   motion=MotionSettings(enabled=False))
 
 
 @dataclass(frozen=True, eq=False)
 class PlanResult:
-    """One planning cycle: the ego trajectory and what led to it."""
+    """One planning cycle: the ego trajectory (and the same in the planning frame) and what led to it."""
 
     trajectory: Trajectory
+    frenet: FrenetPlan
     policy: str  # winning policy name, or 'backup'
     costs: dict[str, float]  # policy name → cost (inf: invalid)
     timings: dict[str, float]  # [s] per stage
@@ -106,6 +111,7 @@ class EpsilonPlanner:
         self.routes = RouteTable(network)
         estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
         self.belief = LearnedBelief(network, estimator) if estimator is not None else None
+        self.motion = MotionLayer(config.motion, config.output_step) if config.motion.enabled else None
 
     # -----------------------------------------------------------------------------------------------------
     def plan(self, snapshot: WorldSnapshot, ego_id: str) -> PlanResult:
@@ -162,15 +168,25 @@ class EpsilonPlanner:
         backup = chosen is None
         winner = n_real if backup else chosen
         self.manager.commit(everything[winner], now)
-        trajectory = self._trajectory(frame, sim, rollouts, policy_of, weight_of, winner, vehicles, now)
+        r = self._likely(policy_of, weight_of, winner)
+        behaviour = self._rollout_plan(frame, sim, r, vehicles, now)
+        self._curvature = float(sim.curvature[r, 1, 0])
+        t_behaviour = time.perf_counter()
+        if self.motion is None:
+            frenet, trajectory = behaviour
+        else:
+            backup_plan = behaviour if backup else \
+                self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
+            frenet, trajectory = self.motion.plan(self._motion_input(frame, sim, r, vehicles, now, stop.distance),
+                                                  backup_plan)
         done = time.perf_counter()
         self.stats.backups += int(backup)
         self.stats.cycle_times.append(done - clock)
         names = [p.name for p in policies] + [BACKUP]
-        return PlanResult(trajectory, BACKUP if backup else names[winner],
+        return PlanResult(trajectory, frenet, BACKUP if backup else names[winner],
                           {n: float(c) for n, c in zip(names, cost)},
                           {"scene": t_scene - clock, "setup": t_setup - t_scene, "simulate": t_sim - t_setup,
-                           "evaluate": done - t_sim, "total": done - clock},
+                           "evaluate": t_behaviour - t_sim, "motion": done - t_behaviour, "total": done - clock},
                           len(vehicles) - 1, len(scenarios.weights), backup)
 
     # -----------------------------------------------------------------------------------------------------
@@ -295,21 +311,34 @@ class EpsilonPlanner:
         rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0)
         return rollouts, policy_of, scenarios.weights[scenario_of]
 
-    def _trajectory(self, frame: RoadFrame, sim: SimResult, rollouts: Rollouts, policy_of: np.ndarray,
-                    weight_of: np.ndarray, winner: int, vehicles: Vehicles, now: float) -> Trajectory:
-        """The winner's ego states in its most likely scenario, as front-bumper states at absolute times every
-        ``output_step``, interpolated in the frame (interpolating world points would cut across the vertices
-        of a curved lane's polyline)."""
-        candidates = np.flatnonzero(policy_of == winner)
-        r = int(candidates[np.argmax(weight_of[candidates])])
-        self._curvature = float(sim.curvature[r, 1, 0])
+    @staticmethod
+    def _likely(policy_of: np.ndarray, weight_of: np.ndarray, policy: int) -> int:
+        """The rollout of ``policy`` in its most likely scenario."""
+        candidates = np.flatnonzero(policy_of == policy)
+        return int(candidates[np.argmax(weight_of[candidates])])
+
+    def _rollout_plan(self, frame: RoadFrame, sim: SimResult, r: int, vehicles: Vehicles, now: float
+                      ) -> tuple[FrenetPlan, Trajectory]:
+        """Rollout ``r``'s ego states at absolute times every ``output_step``, interpolated in the frame
+        (interpolating world points would cut across the vertices of a curved lane's polyline): in the frame and
+        as front-bumper states."""
         step = self.config.output_step
         t = np.arange(0.0, float(sim.t[-1]) + 0.5 * step, step)
         accel = np.concatenate([sim.accel[r, 1:, 0], sim.accel[r, -1:, 0]])
         s, d, h, speed, accel = (np.interp(t, sim.t, a) for a in (sim.s[r, :, 0], sim.d[r, :, 0],
                                                                   sim.heading[r, :, 0], sim.speed[r, :, 0], accel))
         x, y, heading = frame.bumper_at(s, d, h, 0.5 * float(vehicles.length[0]))
-        return Trajectory(now + t, x, y, heading, speed, accel)
+        return from_samples(frame, now + t, s, d, h, speed), Trajectory(now + t, x, y, heading, speed, accel)
+
+    @staticmethod
+    def _motion_input(frame: RoadFrame, sim: SimResult, r: int, vehicles: Vehicles, now: float,
+                      stop_distance: float) -> MotionInput:
+        """The motion layer's view of rollout ``r`` (the winner in its most likely scenario): the ego's and the
+        agents' simulated trajectories; the stop line as a bound on the ego's centre."""
+        ego = tuple(a[r, :, 0] for a in (sim.s, sim.d, sim.heading, sim.speed, sim.accel))
+        agents = (sim.s[r, :, 1:], sim.d[r, :, 1:], sim.heading[r, :, 1:], vehicles.length[1:], vehicles.width[1:])
+        return MotionInput(frame, now, sim.t, ego, float(vehicles.length[0]), float(vehicles.width[0]), agents,
+                           float(vehicles.s[0]) + stop_distance)
 
 
 def _target(lat: Lat) -> int:

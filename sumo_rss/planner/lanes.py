@@ -19,7 +19,7 @@ class LaneChains:
 
     ``shapes`` holds the chains that exist, ``chain_of[RIGHT|CURRENT|LEFT]`` their row in it (-1 if absent),
     ``lanes[c]`` the lane indices of chain c, ``start_s[c]`` where the ego's own lane starts along chain c [m],
-    ``speed_limit[c]`` the lowest limit along it [m/s], ``dead_end[c]`` whether chain c's last lane ends for good
+    ``speed_limit[c]`` the lowest limit along it [m/s], ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's last lane ends for good
     (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
     A neighbour chain starts beside the first lane along the ego's chain that has such a neighbour, so the
     motorway beside an on-ramp is known before the ego reaches it.
@@ -30,6 +30,7 @@ class LaneChains:
     lanes: tuple[tuple[int, ...], ...]
     start_s: np.ndarray
     speed_limit: np.ndarray
+    width: np.ndarray
     dead_end: np.ndarray
 
     def exists(self, which: int) -> bool:
@@ -65,7 +66,7 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
     route_set = set(int(e) for e in route if e >= 0)
     own_ahead = _walk(network, lane, network.lane_successors, route_set, forward, own=True)
     starts = [_first_neighbour(network.lane_right, own_ahead), lane, _first_neighbour(network.lane_left, own_ahead)]
-    chains, chain_of, start_s, limits, polylines, dead_end = [], np.full(3, -1), [], [], [], []
+    chains, chain_of, start_s, limits, widths, polylines, dead_end = [], np.full(3, -1), [], [], [], [], []
     for which, first in enumerate(starts):
         if first < 0:
             continue
@@ -83,10 +84,11 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         chains.append(chain)
         start_s.append(offset)
         limits.append(float(network.lane_speed[list(chain)].min()))
+        widths.append(float(network.lane_width[list(chain)].min()))
         polylines.append(np.asarray(pts, dtype=float))
         dead_end.append(bool(network.lane_ends[chain[-1]]))
     return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
-                      np.array(limits), np.array(dead_end, dtype=bool))
+                      np.array(limits), np.array(widths), np.array(dead_end, dtype=bool))
 
 
 def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:

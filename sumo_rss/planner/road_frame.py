@@ -22,7 +22,8 @@ GRID_STEP = 1.0  # [m] spacing of the offset profiles
 class RoadFrame:
     """``centre[c, g]``: d of chain c's centre line at s = s0 + g·GRID_STEP (edge values continued where the
     chain does not reach; ``extent[c]`` is where it does). ``end_s[c]``: where chain c's lane ends for good
-    (inf if it goes on). Chains that do not exist copy the current chain (``exists[c]`` False)."""
+    (inf if it goes on), ``lane_width[c]`` its narrowest lane [m]. Chains that do not exist copy the current
+    chain (``exists[c]`` False)."""
 
     chains: LaneChains
     s0: float
@@ -31,6 +32,7 @@ class RoadFrame:
     end_s: np.ndarray  # [3]
     exists: np.ndarray  # [3] bool
     speed_limit: np.ndarray  # [3] m/s
+    lane_width: np.ndarray  # [3] m
     slope_grid: np.ndarray  # [3, G-1] heading [rad] of each chain's centre line between grid points
 
     @classmethod
@@ -45,12 +47,14 @@ class RoadFrame:
         end_s = np.full(3, np.inf)
         exists = np.zeros(3, dtype=bool)
         limits = np.full(3, float(chains.speed_limit[cur]))
+        widths = np.full(3, float(chains.width[cur]))
         for which in range(3):
             row = int(chains.chain_of[which])
             if row < 0:
                 continue
             exists[which] = True
             limits[which] = float(chains.speed_limit[row])
+            widths[which] = float(chains.width[row])
             n = int(shapes.count[row])
             length = float(shapes.cumulative[row, n - 1])
             along = np.arange(0.0, length + GRID_STEP, GRID_STEP)
@@ -66,7 +70,7 @@ class RoadFrame:
             extent[which] = (s[0], s[-1])
             if chains.dead_end[row]:
                 end_s[which] = s[-1]
-        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits,
+        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits, widths,
                    np.arctan(np.diff(centre, axis=1) / GRID_STEP))
 
     def centre_d(self, chain: Any, s: Any) -> np.ndarray:

@@ -1,0 +1,233 @@
+"""Spatio-temporal semantic corridor (epsilon.md §6.3-§6.5, with the port's fixes).
+
+An occupancy grid over (t, s, d) in the planning frame holds where the ego's *centre* may not be:
+- every agent's simulated box at each sample time, inflated by the ego's half length / half width and a margin
+  (the Minkowski sum with the ego's footprint, axis-aligned in the frame), rasterised conservatively: a cell is
+  occupied when any part of it touches the inflated box;
+- static semantics in every time slice: the road edges (the ego's body must stay on the union of the lanes that
+  exist at that s, so a lane that ends or a gap between carriageways is off-road) and a stop line (an upper
+  bound on s).
+Seeds are the ego's initial state and its forward-simulated states; cubes grow from pairs of seeds (5 cells per
+direction and round, s capped by kinematic reach, then +t to at least 2 slices) and chain with shared time
+boundaries. Failure raises :class:`MotionFailure` with the reason. Units: m, s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..road_frame import GRID_STEP, RoadFrame
+from .ssc_qp import MotionFailure
+
+
+@dataclass(frozen=True)
+class CorridorSettings:
+    """Grid and inflation settings (epsilon.md §6.3, §6.5); the time slices are the forward simulation's."""
+
+    s_cells: int = 250
+    s_res: float = 1.0  # [m]
+    s_back: float = 20.0  # [m] grid start behind the ego
+    d_cells: int = 71
+    d_res: float = 0.2  # [m]
+    margin: float = 0.1  # [m] added around every agent's inflated box
+    step_cells: int = 5  # cells per direction and inflation round
+    min_slices: int = 2  # a cube lasts at least this many time slices when free
+    reach_accel: float = 3.0  # [m/s²] kinematic s cap ahead: s0 + v0·t + ½·a·t² + v0·reach_time
+    reach_brake: float = 6.0  # [m/s²] and behind: s0 + v0·t − ½·b·t² − v0·reach_time
+    reach_time: float = 1.0  # [s]
+    min_back_cells: int = 10  # cubes never reach further back than this many cells from the grid start
+
+    @property
+    def d_min(self) -> float:
+        return -0.5 * (self.d_cells - 1) * self.d_res
+
+
+@dataclass(frozen=True, eq=False)
+class Corridor:
+    """Cubes j = 0..N−1: time span [knots[j], knots[j+1]] (relative to the plan's start) and position bounds
+    ``bounds[j, dim] = (low, high)`` (dim 0 = s, 1 = d) for the ego's centre; ``cells[j]`` = the index cube
+    (s_lo, s_hi, d_lo, d_hi, t_lo, t_hi)."""
+
+    knots: np.ndarray  # [N+1]
+    bounds: np.ndarray  # [N, 2, 2]
+    cells: np.ndarray  # [N, 6] int
+
+    def contains(self, t: np.ndarray, s: np.ndarray, d: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+        """Whether each (t, s, d) lies in the cube whose time span holds t."""
+        j = np.clip(np.searchsorted(self.knots, t, side="right") - 1, 0, len(self.bounds) - 1)
+        b = self.bounds[j]
+        return (s >= b[:, 0, 0] - tol) & (s <= b[:, 0, 1] + tol) & (d >= b[:, 1, 0] - tol) & (d <= b[:, 1, 1] + tol)
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """The occupancy grid of one cycle: ``occupied[k, i, j]`` for time slice k (at ``times[k]``), s cell i, d cell
+    j; cell centres at ``s_origin + i·s_res`` and ``d_min + j·d_res``."""
+
+    occupied: np.ndarray  # [K, S, D] bool
+    times: np.ndarray  # [K]
+    s_origin: float
+    settings: CorridorSettings
+
+    def s_index(self, s: np.ndarray) -> np.ndarray:
+        return np.rint((np.asarray(s) - self.s_origin) / self.settings.s_res).astype(int)
+
+    def d_index(self, d: np.ndarray) -> np.ndarray:
+        return np.rint((np.asarray(d) - self.settings.d_min) / self.settings.d_res).astype(int)
+
+
+class RoadLayer:
+    """The static cells of one planning frame for one ego width, over the frame's whole length on a grid aligned
+    to whole multiples of ``s_res``: where the ego's centre would put its body off the road (at either s edge of
+    the cell). Built once per frame; each cycle takes a window."""
+
+    def __init__(self, frame: RoadFrame, ego_width: float, settings: CorridorSettings):
+        c = settings
+        self.frame = frame
+        self.first = int(np.floor(frame.s0 / c.s_res)) - c.s_cells
+        last = int(np.ceil((frame.s0 + GRID_STEP * (frame.centre.shape[1] - 1)) / c.s_res)) + c.s_cells
+        self.off_road = _off_road(frame, c.s_res * np.arange(self.first, last + 1), ego_width, c)
+
+    def window(self, first: int, cells: int) -> np.ndarray:
+        """[cells, D]: rows for s indices first .. first + cells − 1 (off-road beyond the frame)."""
+        i = np.arange(first, first + cells) - self.first
+        inside = (i >= 0) & (i < self.off_road.shape[0])
+        return np.where(inside[:, None], self.off_road[np.clip(i, 0, self.off_road.shape[0] - 1)], True)
+
+
+def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: float, ego_width: float,
+              agents: tuple[np.ndarray, ...], stop_s: float, settings: CorridorSettings) -> Grid:
+    """The grid around the ego (its centre at frame s ``ego_s``): ``agents`` = (s, d, heading) arrays [K, n] at
+    ``times`` plus (length, width) [n]; the ego's centre may not pass ``stop_s``."""
+    c = settings
+    first = int(np.floor((ego_s - c.s_back) / c.s_res))
+    origin = first * c.s_res
+    s_centres = origin + c.s_res * np.arange(c.s_cells)
+    static = road.window(first, c.s_cells) | (s_centres + 0.5 * c.s_res > stop_s)[:, None]
+    s, d, heading, length, width = agents
+    if not s.size:
+        return Grid(np.broadcast_to(static, (times.size,) + static.shape).copy(), times, origin, c)
+    cos, sin = np.abs(np.cos(heading)), np.abs(np.sin(heading))
+    half_s = 0.5 * (length * cos + width * sin) + 0.5 * ego_length + c.margin
+    half_d = 0.5 * (length * sin + width * cos) + 0.5 * ego_width + c.margin
+    s_lo, s_hi = _cells_touching(s - half_s, s + half_s, origin, c.s_res)
+    d_lo, d_hi = _cells_touching(d - half_d, d + half_d, c.d_min, c.d_res)
+    # Each box is the outer product of its s and d intervals; a slice's union is one matrix product.
+    i, j = np.arange(c.s_cells), np.arange(c.d_cells)
+    in_s = ((i >= s_lo[..., None]) & (i <= s_hi[..., None])).astype(np.float32)  # [K, n, S]
+    in_d = ((j >= d_lo[..., None]) & (j <= d_hi[..., None])).astype(np.float32)  # [K, n, D]
+    dynamic = np.matmul(in_s.transpose(0, 2, 1), in_d) > 0.0
+    return Grid(dynamic | static[None], times, origin, c)
+
+
+def _cells_touching(low: np.ndarray, high: np.ndarray, origin: float, res: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and last index of the cells (centres origin + i·res, width res) that touch [low, high]."""
+    return (np.ceil((low - origin) / res - 0.5).astype(int), np.floor((high - origin) / res + 0.5).astype(int))
+
+
+def _off_road(frame: RoadFrame, s_centres: np.ndarray, ego_width: float, c: CorridorSettings) -> np.ndarray:
+    """[len(s_centres), D]: cells where a centre anywhere in the cell puts the ego's body off the union of the lanes
+    that exist there (checked at both s edges of the cell)."""
+    S = s_centres.size
+    s_edges = np.stack([s_centres - 0.5 * c.s_res, s_centres + 0.5 * c.s_res])  # [2, S]
+    centres = frame.centres_at(s_edges)  # [3, 2, S]
+    present = frame.exists[:, None, None] & (s_edges >= frame.extent[:, 0, None, None]) & \
+        (s_edges <= np.minimum(frame.extent[:, 1], frame.end_s)[:, None, None])
+    half = 0.5 * frame.lane_width[:, None, None]
+    edges = c.d_min - 0.5 * c.d_res + c.d_res * np.arange(c.d_cells + 1)  # [D+1] d-cell boundaries
+    tol = 0.01  # [m] lanes that touch leave no gap
+    on_road = np.any(present[..., None] & (edges >= (centres - half - tol)[..., None]) &
+                     (edges <= (centres + half + tol)[..., None]), axis=0)  # [2, S, D+1]
+    covered = on_road[..., :-1] & on_road[..., 1:]  # [2, S, D] the whole d cell is road
+    # The body of a centre anywhere in cell j spans the cells touching [d_j − res/2 − w/2, d_j + res/2 + w/2].
+    reach = int(np.ceil(0.5 * ego_width / c.d_res - 1e-9))
+    gaps = np.concatenate([np.zeros((2, S, 1), dtype=int), np.cumsum(~covered, axis=2)], axis=2)
+    j = np.arange(c.d_cells)
+    first, last = np.maximum(j - reach, 0), np.minimum(j + reach, c.d_cells - 1)
+    inside_grid = (j - reach >= 0) & (j + reach <= c.d_cells - 1)
+    body_on_road = (gaps[..., last + 1] - gaps[..., first] == 0) & inside_grid
+    return ~(body_on_road[0] & body_on_road[1])
+
+
+def build_corridor(grid: Grid, seeds_s: np.ndarray, seeds_d: np.ndarray, v0: float) -> Corridor:
+    """The cube chain along the seeds (seed k at slice k; seed 0 is the ego's initial state); raises
+    :class:`MotionFailure` ('corridor_seeds', 'corridor_blocked', 'corridor_start')."""
+    c = grid.settings
+    K, S, D = grid.occupied.shape
+    si, di = grid.s_index(seeds_s), grid.d_index(seeds_d)
+    ti = np.arange(seeds_s.size)
+    inside = (si >= 0) & (si < S) & (di >= 0) & (di < D) & (ti < K)
+    if not inside[0]:
+        raise MotionFailure("corridor_start", "the ego is outside the grid")
+    keep = inside & (np.arange(ti.size) > 0)
+    keep[0] = True
+    si, di, ti = si[keep], di[keep], ti[keep]
+    if si.size < 2:
+        raise MotionFailure("corridor_seeds", "fewer than two seeds inside the grid")
+    cubes = [_grown_cube(grid, si, di, ti, 0, 1, v0)]
+    last_in = 1
+    for k in range(2, si.size):
+        cube = cubes[-1]
+        if cube[0] <= si[k] <= cube[1] and cube[2] <= di[k] <= cube[3] and ti[k] <= cube[5]:
+            last_in = k
+            continue
+        cube[5] = ti[last_in]
+        cubes.append(_grown_cube(grid, si, di, ti, last_in, k, v0))
+        last_in = k
+    cubes[-1][5] = ti[-1]
+    cells = np.array(cubes, dtype=int)
+    knots = np.concatenate([grid.times[cells[:, 4]], grid.times[cells[-1:, 5]]])
+    bounds = np.stack([
+        np.stack([grid.s_origin + c.s_res * (cells[:, 0] - 0.5), grid.s_origin + c.s_res * (cells[:, 1] + 0.5)], -1),
+        np.stack([c.d_min + c.d_res * (cells[:, 2] - 0.5), c.d_min + c.d_res * (cells[:, 3] + 0.5)], -1)], axis=1)
+    return Corridor(knots, bounds, cells)
+
+
+def _grown_cube(grid: Grid, si: np.ndarray, di: np.ndarray, ti: np.ndarray, a: int, b: int, v0: float) -> list[int]:
+    """The bounding box of seeds a and b, checked free and inflated: [s_lo, s_hi, d_lo, d_hi, t_lo, t_hi]."""
+    c = grid.settings
+    occ = grid.occupied
+    K, S, D = occ.shape
+    box = [min(si[a], si[b]), max(si[a], si[b]), min(di[a], di[b]), max(di[a], di[b]), ti[a], ti[b]]
+    if occ[box[4]:box[5] + 1, box[0]:box[1] + 1, box[2]:box[3] + 1].any():
+        raise MotionFailure("corridor_blocked", f"seeds {a}-{b} at t = {grid.times[ti[b]]:.1f} s are not free")
+    plane = occ[box[4]:box[5] + 1].any(axis=0)  # [S, D] blocked at any time of the cube
+    t = float(grid.times[min(box[4] + 2, K - 1)])
+    s0 = c.s_back  # the ego's initial s relative to the grid origin
+    s_up = s0 + v0 * t + 0.5 * c.reach_accel * t * t + v0 * c.reach_time
+    s_down = s0 + v0 * t - 0.5 * c.reach_brake * t * t - v0 * c.reach_time
+    limits = (max(min(int(np.floor(s_up / c.s_res)), S - 1), box[1]),
+              min(max(int(np.ceil(s_down / c.s_res)), c.min_back_cells), box[0]), D - 1, 0)
+    active = [True, True, True, True]  # +s, −s, +d, −d
+    while active[2] or active[3]:
+        for direction in range(4):
+            if active[direction]:
+                active[direction] = _grow(plane, box, direction, c.step_cells, limits[direction])
+    for direction in (0, 1):
+        if active[direction]:
+            _grow(plane, box, direction, S, limits[direction])
+    while box[5] - box[4] < c.min_slices and box[5] + 1 < K and \
+            not occ[box[5] + 1, box[0]:box[1] + 1, box[2]:box[3] + 1].any():
+        box[5] += 1
+    return box
+
+
+def _grow(plane: np.ndarray, box: list[int], direction: int, step: int, limit: int) -> bool:
+    """Grow ``box`` in ``direction`` (0 +s, 1 −s, 2 +d, 3 −d) by up to ``step`` free layers, not beyond index
+    ``limit``; whether it can grow further."""
+    if direction == 0:
+        end = min(box[1] + step, limit)
+        layers = plane[box[1] + 1:end + 1, box[2]:box[3] + 1].any(axis=1)
+    elif direction == 1:
+        end = max(box[0] - step, limit)
+        layers = plane[end:box[0], box[2]:box[3] + 1].any(axis=1)[::-1]
+    elif direction == 2:
+        end = min(box[3] + step, limit)
+        layers = plane[box[0]:box[1] + 1, box[3] + 1:end + 1].any(axis=0)
+    else:
+        end = max(box[2] - step, limit)
+        layers = plane[box[0]:box[1] + 1, end:box[2]].any(axis=0)[::-1]
+    free = int(np.argmax(layers)) if layers.any() else layers.size
+    box[(1, 0, 3, 2)[direction]] += free if direction in (0, 2) else -free
+    return free == step and layers.size == step

@@ -1,0 +1,235 @@
+"""The SSC quadratic programme (epsilon.md §6.7): a piecewise degree-5 Bézier in (s, d), one segment per corridor
+cube, minimising jerk plus a pull towards the behaviour layer's trajectory, solved with osqp.
+
+Variables: the scaled control points c[j, dim, i] (:mod:`.bezier`), 12 per segment.
+Cost ½xᵀPx + qᵀx = Σ_j ∫ ‖jerk‖² dt + w·Σ_k ‖p(t_k) − p_ref(t_k)‖².
+Equalities: start position, velocity and acceleration; end position and velocity; position, velocity and
+acceleration continuity at every junction (6N + 4 rows). Inequalities (sufficient by the convex-hull property):
+the 6 position control points of each segment inside its cube, the 5 velocity and 4 acceleration control points
+inside the dynamic bounds (30 rows per segment).
+
+The sparsity pattern depends only on the number of segments, so the matrices' structure is built once per N and
+one osqp solver per N is kept: each cycle only the values are updated, and osqp warm-starts from that solver's
+previous solution. Units: m, s, m/s, m/s².
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from .bezier import ACC_FACTOR, D1, D2, D3, DEGREE, JERK_HESSIAN, N_CTRL, VEL_FACTOR, PiecewiseBezier, bernstein
+
+DIMS = 2  # s, d
+PER_SEGMENT = DIMS * N_CTRL
+INEQ_PER_DIM = N_CTRL + (N_CTRL - 1) + (N_CTRL - 2)  # 6 position, 5 velocity, 4 acceleration control points
+SOLVED = osqp.SolverStatus.OSQP_SOLVED
+
+
+class MotionFailure(Exception):
+    """The motion layer found no trajectory this cycle; ``reason`` says why (a short, stable tag)."""
+
+    def __init__(self, reason: str, detail: str = ""):
+        super().__init__(f"{reason}: {detail}" if detail else reason)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class DynamicBounds:
+    """Bounds on every segment's derivative control points (epsilon.md §6.5; braking capped at the ego's
+    hard-brake limit of the forward simulation)."""
+
+    s_speed: tuple[float, float] = (0.0, 50.0)  # [m/s]
+    s_accel: tuple[float, float] = (-5.0, 3.0)  # [m/s²]
+    d_speed: tuple[float, float] = (-2.5, 2.5)  # [m/s]
+    d_accel: tuple[float, float] = (-1.25, 1.25)  # [m/s²]
+
+
+@dataclass(frozen=True, eq=False)
+class QpProblem:
+    """One instance: ``knots`` [N+1] segment boundaries [s] (relative), ``cubes[j, dim]`` = (low, high) position
+    bounds [m], ``start[dim]`` = (p, v, a) and ``end[dim]`` = (p, v), reference samples at ``ref_t`` [K] with
+    positions ``ref[K, 2]``, weights ``weight`` [1/s³] (a number, or one per dimension (s, d))."""
+
+    knots: np.ndarray
+    cubes: np.ndarray  # [N, 2, 2]
+    start: np.ndarray  # [2, 3]
+    end: np.ndarray  # [2, 2]
+    ref_t: np.ndarray
+    ref: np.ndarray
+    weight: float | np.ndarray
+    bounds: DynamicBounds
+
+    @property
+    def segments(self) -> int:
+        return len(self.knots) - 1
+
+
+@dataclass(frozen=True, eq=False)
+class QpMatrices:
+    """osqp's form: minimise ½xᵀPx + qᵀx subject to l ≤ Ax ≤ u (P upper-triangular); the first ``n_eq`` rows
+    are the equalities."""
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    A: sp.csc_matrix
+    l: np.ndarray
+    u: np.ndarray
+    n_eq: int
+
+
+def _var(seg: np.ndarray, dim: np.ndarray, i: np.ndarray) -> np.ndarray:
+    return (seg * DIMS + dim) * N_CTRL + i
+
+
+# The solver's variables are, per segment and dimension, z = (c0, Δc0, Δ²c0, Δ³c0, Δ³c1, Δ³c2) with c = BASIS·z:
+# the jerk cost then acts on the last three alone, so a diagonal scaling (osqp's Ruiz) separates the huge jerk
+# curvature from the small tracking one. In the control points themselves osqp needs thousands of iterations.
+BASIS = np.linalg.inv(np.vstack([np.eye(N_CTRL)[0], D1[0], D2[0], D3]))
+_E = np.eye(N_CTRL)
+
+# Row templates in control-point space: (row within the group, segment offset, coefficients on that segment's
+# 6 control points, scaling by the segment's duration T: 'T' (×T), '1' or '/T' (÷T)).
+_START = [(0, 0, _E[0], "T"), (1, 0, VEL_FACTOR * D1[0], "1"), (2, 0, ACC_FACTOR * D2[0], "/T")]
+_END = [(0, 0, _E[5], "T"), (1, 0, VEL_FACTOR * D1[4], "1")]
+_JOIN = [(0, 0, _E[5], "T"), (0, 1, -_E[0], "T"),
+         (1, 0, VEL_FACTOR * D1[4], "1"), (1, 1, -VEL_FACTOR * D1[0], "1"),
+         (2, 0, ACC_FACTOR * D2[3], "/T"), (2, 1, -ACC_FACTOR * D2[0], "/T")]
+_INEQ = [(i, 0, _E[i], "T") for i in range(N_CTRL)] + \
+    [(N_CTRL + i, 0, VEL_FACTOR * D1[i], "1") for i in range(N_CTRL - 1)] + \
+    [(2 * N_CTRL - 1 + i, 0, ACC_FACTOR * D2[i], "/T") for i in range(N_CTRL - 2)]
+
+
+def _entries(template: list) -> tuple[np.ndarray, ...]:
+    """The template's non-zero entries on the basis variables z: (row, segment offset, z index, coefficient,
+    scaling)."""
+    out = []
+    for row, offset, coefs, scale in template:
+        on_z = coefs @ BASIS
+        out += [(row, offset, int(i), float(on_z[i]), scale) for i in np.flatnonzero(np.abs(on_z) > 1e-12)]
+    return tuple(np.array(x) for x in zip(*out))
+
+
+_GROUPS = {name: _entries(template) for name, template in
+           (("start", _START), ("end", _END), ("join", _JOIN), ("ineq", _INEQ))}
+
+
+def _group(name: str, segments: np.ndarray, first_row: int, rows_per: int, T: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entries of a template repeated over ``segments`` × dims; group g = (segment index k, dim) starts at row
+    first_row + (k·DIMS + dim)·rows_per."""
+    r, off, c, coef, scale = _GROUPS[name]
+    k, dim, e = np.meshgrid(np.arange(segments.size), np.arange(DIMS), np.arange(r.size), indexing="ij")
+    seg = segments[k] + off[e]
+    factor = np.where(scale[e] == "T", T[seg], np.where(scale[e] == "/T", 1.0 / T[seg], 1.0))
+    rows = first_row + (k * DIMS + dim) * rows_per + r[e]
+    return rows.ravel(), _var(seg, dim, c[e]).ravel(), (coef[e] * factor).ravel()
+
+
+def _csc(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]) -> sp.csc_matrix:
+    """A CSC matrix whose stored entries are exactly (rows, cols) in column-major order, zeros included (so the
+    same pattern always gives the same ``data`` layout for osqp's in-place updates)."""
+    order = np.lexsort((rows, cols))
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=shape[1]))])
+    return sp.csc_matrix((vals[order], rows[order], indptr), shape=shape)
+
+
+def assemble(problem: QpProblem) -> QpMatrices:
+    """The QP's matrices on the basis variables (see :data:`BASIS`); the stored entries depend only on N."""
+    N, b = problem.segments, problem.bounds
+    T = np.diff(problem.knots)
+    if np.any(T <= 0.0):
+        raise MotionFailure("qp_shape", "segment durations must be positive")
+    groups = [("start", np.array([0]), 3), ("end", np.array([N - 1]), 2), ("join", np.arange(N - 1), 3),
+              ("ineq", np.arange(N), INEQ_PER_DIM)]
+    rows, cols, vals, first = [], [], [], 0
+    for name, segments, per in groups:
+        r, c, v = _group(name, segments, first, per, T)
+        rows.append(r), cols.append(c), vals.append(v)
+        first += segments.size * DIMS * per
+    n_eq = (3 + 2 + 3 * (N - 1)) * DIMS
+    A = _csc(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), (first, N * PER_SEGMENT))
+    eq = np.concatenate([problem.start.ravel(), problem.end.ravel(), np.zeros(3 * (N - 1) * DIMS)])
+    lo_pos, hi_pos = problem.cubes[..., 0], problem.cubes[..., 1]  # [N, 2]
+    speed = np.array([b.s_speed, b.d_speed])
+    accel = np.array([b.s_accel, b.d_accel])
+    low = np.concatenate([np.repeat(lo_pos[..., None], N_CTRL, -1),
+                          np.broadcast_to(speed[:, :1], (N, DIMS, N_CTRL - 1)),
+                          np.broadcast_to(accel[:, :1], (N, DIMS, N_CTRL - 2))], axis=-1)
+    high = np.concatenate([np.repeat(hi_pos[..., None], N_CTRL, -1),
+                           np.broadcast_to(speed[:, 1:], (N, DIMS, N_CTRL - 1)),
+                           np.broadcast_to(accel[:, 1:], (N, DIMS, N_CTRL - 2))], axis=-1)
+    P, q = _cost(problem, T)
+    return QpMatrices(P, q, A, np.concatenate([eq, low.ravel()]), np.concatenate([eq, high.ravel()]), n_eq)
+
+
+def _cost(problem: QpProblem, T: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
+    """Jerk (2H/T³ per segment and dim) plus reference tracking w·‖T·B(τ_k)·c − ref_k‖², on the basis variables."""
+    N = problem.segments
+    w = np.broadcast_to(np.asarray(problem.weight, dtype=float), (DIMS,))
+    blocks = np.repeat((2.0 * JERK_HESSIAN)[None, None], N, 0) / (T ** 3)[:, None, None, None]  # [N, 1, 6, 6]
+    blocks = np.repeat(blocks, DIMS, axis=1)  # [N, 2, 6, 6]
+    q = np.zeros((N, DIMS, N_CTRL))
+    seg = np.clip(np.searchsorted(problem.knots, problem.ref_t, side="right") - 1, 0, N - 1)
+    tau = np.clip((problem.ref_t - problem.knots[seg]) / T[seg], 0.0, 1.0)
+    row = T[seg, None] * bernstein(DEGREE, tau)  # [K, 6]: p(t_k) = row · c
+    np.add.at(blocks, seg, 2.0 * w[None, :, None, None] * (row[:, :, None] * row[:, None, :])[:, None])
+    np.add.at(q, seg, -2.0 * w[None, :, None] * problem.ref[:, :, None] * row[:, None, :])
+    blocks = BASIS.T @ blocks @ BASIS
+    q = q @ BASIS
+    upper = np.triu_indices(N_CTRL)
+    k, dim, e = np.meshgrid(np.arange(N), np.arange(DIMS), np.arange(upper[0].size), indexing="ij")
+    P = _csc(_var(k, dim, upper[0][e]).ravel(), _var(k, dim, upper[1][e]).ravel(),
+             blocks[k, dim, upper[0][e], upper[1][e]].ravel(), (N * PER_SEGMENT, N * PER_SEGMENT))
+    return P, q.ravel()
+
+
+def control_points(problem: QpProblem, x: np.ndarray) -> np.ndarray:
+    """[N, 2, 6] scaled control points of a solution ``x`` on the basis variables."""
+    return x.reshape(problem.segments, DIMS, N_CTRL) @ BASIS.T
+
+
+class SscSolver:
+    """osqp, one solver per number of segments: the matrices' values are updated in place and osqp warm-starts
+    from that solver's previous solution. ADMM stops at ``eps``; polishing then solves the KKT system of the
+    active set exactly. A solution whose equalities or bounds are off by more than ``tolerance`` is refused."""
+
+    def __init__(self, eps: float = 1e-5, max_iter: int = 4000, tolerance: float = 1e-6):
+        self.settings = dict(verbose=False, eps_abs=eps, eps_rel=eps, polishing=True, max_iter=max_iter,
+                             warm_starting=True)
+        self.tolerance = tolerance
+        self._solvers: dict[int, osqp.OSQP] = {}
+        self.iterations = 0  # of the last solve
+
+    def solve(self, problem: QpProblem) -> PiecewiseBezier:
+        """The optimal curve; raises :class:`MotionFailure` ('qp_infeasible', 'qp_not_solved', 'qp_inaccurate')
+        otherwise. s is solved relative to the start (positions of hundreds of metres would swamp the absolute
+        tolerance) and shifted back."""
+        s0 = float(problem.start[0, 0])
+        shifted = replace(problem, cubes=problem.cubes - np.array([[s0], [0.0]]),
+                          start=problem.start - np.array([[s0], [0.0]]) * np.eye(1, 3),
+                          end=problem.end - np.array([[s0], [0.0]]) * np.eye(1, 2),
+                          ref=problem.ref - np.array([s0, 0.0]))
+        m = assemble(shifted)
+        solver = self._solvers.get(problem.segments)
+        if solver is None:
+            solver = osqp.OSQP()
+            solver.setup(m.P, m.q, m.A, m.l, m.u, **self.settings)
+            self._solvers[problem.segments] = solver
+        else:
+            solver.update(Px=m.P.data, Ax=m.A.data, q=m.q, l=m.l, u=m.u)
+        result = solver.solve(raise_error=False)
+        self.iterations = int(result.info.iter)
+        if result.info.status_val != SOLVED:
+            reason = "qp_infeasible" if "infeasible" in result.info.status else "qp_not_solved"
+            raise MotionFailure(reason, result.info.status)
+        x = np.asarray(result.x)
+        ax = m.A @ x
+        off = max(float(np.abs(ax[:m.n_eq] - m.l[:m.n_eq]).max()), float(np.max(m.l - ax)), float(np.max(ax - m.u)))
+        if off > self.tolerance:
+            raise MotionFailure("qp_inaccurate", f"constraints off by {off:.1e}")
+        ctrl = control_points(problem, x)
+        ctrl[:, 0, :] += s0 / np.diff(problem.knots)[:, None]  # p = T·Σc·B and Σ B = 1
+        return PiecewiseBezier(problem.knots, ctrl)

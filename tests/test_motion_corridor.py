@@ -1,0 +1,98 @@
+"""The SSC corridor on the straight part of the highway net (hw0: three 3.5 m lanes; the frame's d = 0 is the
+middle lane's centre, so the road spans d ∈ [−5.25, 5.25] m). The ego and the agents are 4.5 m × 1.8 m."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import NETWORKS
+from sumo_rss.planner.lanes import lane_chains
+from sumo_rss.planner.motion.corridor import CorridorSettings, RoadLayer, build_corridor, occupancy
+from sumo_rss.planner.motion.ssc_qp import MotionFailure
+from sumo_rss.planner.road_frame import RoadFrame
+from sumo_rss.road.network import RoadNetwork
+
+LENGTH, WIDTH = 4.5, 1.8  # [m]
+SETTINGS = CorridorSettings()
+TIMES = np.round(np.arange(26) * 0.2, 10)  # [s] the forward simulation's samples over 5 s
+EGO_S = 100.3  # [m]
+
+
+@pytest.fixture(scope="module")
+def road():
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
+    return RoadLayer(frame, WIDTH, SETTINGS)
+
+
+def _agents(s, d, n=1):
+    """Agents at (s[k, i], d[k, i]) with heading 0."""
+    s, d = np.asarray(s, float).reshape(TIMES.size, n), np.asarray(d, float).reshape(TIMES.size, n)
+    return s, d, np.zeros_like(s), np.full(n, LENGTH), np.full(n, WIDTH)
+
+
+def _cells(grid):
+    s = grid.s_origin + SETTINGS.s_res * np.arange(SETTINGS.s_cells)
+    d = SETTINGS.d_min + SETTINGS.d_res * np.arange(SETTINGS.d_cells)
+    return s, d
+
+
+def test_road_edges_keep_the_ego_body_on_the_three_lanes(road):
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(np.full(26, -1e3), np.zeros(26)), np.inf, SETTINGS)
+    _, d = _cells(grid)
+    free = ~grid.occupied[0, 20]  # the ego's own s cell
+    # A centre anywhere in a free cell keeps the body (± 0.9 m) on [−5.25, 5.25] m (0.01 m: touching lanes).
+    assert np.all(np.abs(d[free]) + 0.1 + 0.5 * WIDTH <= 5.25 + 0.01 + 1e-9)
+    # ... and every cell whose body certainly fits is free: |d| + 0.1 + 0.9 ≤ 5.25 − one cell of quantisation.
+    assert np.all(free[np.abs(d) + 0.1 + 0.5 * WIDTH <= 5.25 - 0.2])
+    assert free[np.isclose(d, 4.0)].all() and not free[np.isclose(d, 4.6)].any()
+    assert np.array_equal(free, free[::-1])  # symmetric road
+
+
+def test_agents_are_inflated_by_the_ego_footprint_and_rasterised_conservatively(road):
+    s_agent = EGO_S + 30.0 + 2.0 * TIMES  # [m] 30 m ahead, 2 m/s faster
+    empty = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(np.full(26, -1e3), np.zeros(26)), np.inf, SETTINGS)
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(s_agent, np.full(26, 0.3)), np.inf, SETTINGS)
+    s, d = _cells(grid)
+    half_s = 0.5 * LENGTH + 0.5 * LENGTH + SETTINGS.margin  # 4.6 m
+    half_d = 0.5 * WIDTH + 0.5 * WIDTH + SETTINGS.margin  # 1.9 m
+    for k in (0, 12, 25):
+        touches_s = (s + 0.5 * SETTINGS.s_res >= s_agent[k] - half_s) & (s - 0.5 * SETTINGS.s_res <= s_agent[k] + half_s)
+        touches_d = (d + 0.5 * SETTINGS.d_res >= 0.3 - half_d) & (d - 0.5 * SETTINGS.d_res <= 0.3 + half_d)
+        expected = (touches_s[:, None] & touches_d[None, :]) | empty.occupied[k]
+        assert np.array_equal(grid.occupied[k], expected), k
+
+
+def test_corridor_chains_free_cubes_with_shared_time_boundaries_around_the_seeds(road):
+    v = 15.0  # [m/s]
+    seeds_s, seeds_d = EGO_S + v * TIMES, np.zeros(TIMES.size)
+    agents = _agents(np.column_stack([EGO_S + 40.0 + v * TIMES, EGO_S - 25.0 + v * TIMES]),
+                     np.column_stack([np.zeros(26), np.full(26, 3.5)]), n=2)
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, agents, np.inf, SETTINGS)
+    corridor = build_corridor(grid, seeds_s, seeds_d, v)
+    assert corridor.knots[0] == 0.0 and corridor.knots[-1] == pytest.approx(TIMES[-1])
+    assert np.all(np.diff(corridor.knots) > 0.0)
+    cells = corridor.cells
+    assert np.array_equal(cells[1:, 4], cells[:-1, 5])  # consecutive cubes share their time boundary
+    for s_lo, s_hi, d_lo, d_hi, t_lo, t_hi in cells:
+        assert not grid.occupied[t_lo:t_hi + 1, s_lo:s_hi + 1, d_lo:d_hi + 1].any()
+    assert corridor.contains(TIMES, seeds_s, seeds_d).all()
+    # The car ahead bounds the cubes: the ego's centre stays 4.6 m (+ rasterisation) behind the car's centre.
+    lead = EGO_S + 40.0 + v * corridor.knots[1:]
+    assert np.all(corridor.bounds[:, 0, 1] <= lead - 4.6 + 1e-9)
+
+
+def test_a_stop_line_bounds_the_ego_centre(road):
+    stop = EGO_S + 30.0  # [m]
+    seeds_s = EGO_S + np.minimum(10.0 * TIMES - TIMES ** 2, 25.0)  # braking from 10 m/s, stays 5 m short
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(np.full(26, -1e3), np.zeros(26)), stop, SETTINGS)
+    corridor = build_corridor(grid, seeds_s, np.zeros(26), 10.0)
+    assert np.all(corridor.bounds[:, 0, 1] <= stop + 1e-9)
+
+
+def test_a_path_through_a_car_is_reported_not_crashed_on(road):
+    parked = _agents(np.full(26, EGO_S + 20.0), np.zeros(26))
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, parked, np.inf, SETTINGS)
+    with pytest.raises(MotionFailure) as failure:
+        build_corridor(grid, EGO_S + 15.0 * TIMES, np.zeros(26), 15.0)
+    assert failure.value.reason == "corridor_blocked"

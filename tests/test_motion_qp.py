@@ -1,0 +1,155 @@
+"""The SSC QP on osqp (epsilon.md §6.6-§6.7) against its own constraints and against a dense scipy solve, the
+low-speed primitive, and the motion layer's failure handling."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.optimize import LinearConstraint, minimize
+
+from sumo_rss.planner.motion.bezier import JERK_HESSIAN, PiecewiseBezier, bernstein
+from sumo_rss.planner.motion.primitive import low_speed_primitive
+from sumo_rss.planner.motion.ssc_qp import BASIS, DynamicBounds, MotionFailure, QpProblem, SscSolver, assemble, \
+    control_points
+
+TOL = 1e-6
+BOUNDS = DynamicBounds()
+
+
+def _swerve(s_start: float = 250.0, weight: float = 1e3, middle_left: float = 0.7) -> QpProblem:
+    """Three cubes over 0..0.4..1.0..1.6 s at 10 m/s; the reference swings 0.6 m to the left and back; the middle
+    cube reaches ``middle_left`` [m] to the left."""
+    knots = np.array([0.0, 0.4, 1.0, 1.6])
+    cubes = np.array([[[s_start - 1.0, s_start + 10.0], [-0.5, 0.7]],
+                      [[s_start + 2.0, s_start + 12.0], [-0.5, middle_left]],
+                      [[s_start + 8.0, s_start + 18.0], [-0.5, 0.7]]])
+    ref_t = np.linspace(0.0, 1.6, 9)
+    ref = np.column_stack([s_start + 10.0 * ref_t, 0.6 * np.sin(np.pi * ref_t / 1.6)])
+    return QpProblem(knots, cubes, np.array([[s_start, 10.0, 0.0], [0.0, 0.0, 0.0]]),
+                     np.array([[s_start + 16.0, 10.0], [0.0, 0.0]]), ref_t, ref, weight, BOUNDS)
+
+
+def _squeezed() -> tuple[QpProblem, float]:
+    """The swerve with the middle cube's left bound at half the free solution's largest lateral control point
+    there, so that bound must be active; and that bound [m]."""
+    free = SscSolver().solve(_swerve())
+    bound = 0.5 * float(free.control_points(0)[1, 1].max())
+    return _swerve(middle_left=bound), bound
+
+
+def _limits(curve: PiecewiseBezier, knot: float, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k-th derivative just before and just after a knot, from the segments on either side."""
+    j = int(np.searchsorted(curve.knots, knot)) - 1
+    left = PiecewiseBezier(curve.knots[j:j + 2], curve.ctrl[j:j + 1]).evaluate(np.array([knot]), k)[0]
+    right = PiecewiseBezier(curve.knots[j + 1:j + 3], curve.ctrl[j + 1:j + 2]).evaluate(np.array([knot]), k)[0]
+    return left, right
+
+
+def test_equalities_hold_to_1e_6():
+    problem, _ = _squeezed()
+    curve = SscSolver().solve(problem)
+    for k in range(3):
+        assert np.allclose(curve.evaluate(np.array([0.0]), k)[0], problem.start[:, k], atol=TOL, rtol=0.0)
+    for k in range(2):
+        assert np.allclose(curve.evaluate(np.array([1.6]), k)[0], problem.end[:, k], atol=TOL, rtol=0.0)
+    for knot in problem.knots[1:-1]:
+        for k in range(3):  # position, velocity and acceleration are continuous
+            left, right = _limits(curve, knot, k)
+            assert np.allclose(left, right, atol=TOL, rtol=0.0), (knot, k)
+
+
+def test_every_sampled_point_is_inside_its_cube_and_the_dynamic_bounds():
+    problem, bound = _squeezed()
+    curve = SscSolver().solve(problem)
+    for j in range(problem.segments):
+        t = np.linspace(problem.knots[j], problem.knots[j + 1], 41)
+        p = curve.evaluate(t, 0)
+        assert np.all(p >= problem.cubes[j, :, 0] - TOL) and np.all(p <= problem.cubes[j, :, 1] + TOL)
+        v, a = curve.evaluate(t, 1), curve.evaluate(t, 2)
+        assert BOUNDS.s_speed[0] - TOL <= v[:, 0].min() and v[:, 0].max() <= BOUNDS.s_speed[1] + TOL
+        assert np.abs(v[:, 1]).max() <= BOUNDS.d_speed[1] + TOL
+        assert BOUNDS.s_accel[0] - TOL <= a[:, 0].min() and a[:, 0].max() <= BOUNDS.s_accel[1] + TOL
+        assert np.abs(a[:, 1]).max() <= BOUNDS.d_accel[1] + TOL
+    # The middle cube's lateral bound shapes the swerve: a control point of the solution lies on it.
+    assert bound > 0.05 and curve.control_points(0)[1, 1].max() == pytest.approx(bound, abs=TOL)
+
+
+def test_the_cost_is_jerk_plus_reference_tracking():
+    """On the solution, ½xᵀPx + qᵀx + w·Σ‖ref_k‖² equals ∫‖jerk‖²dt (by quadrature) + w·Σ‖p(t_k) − ref_k‖²."""
+    problem = _swerve(s_start=0.0, weight=np.array([1.0, 30.0]))
+    m = assemble(problem)
+    curve = SscSolver().solve(problem)
+    x = (curve.ctrl @ np.linalg.inv(BASIS.T)).ravel()  # back to the solver's variables
+    P = m.P.toarray()
+    P = P + np.triu(P, 1).T
+    objective = 0.5 * x @ P @ x + m.q @ x + np.sum(problem.weight * problem.ref ** 2)
+    t = np.linspace(0.0, 1.6, 16001)
+    jerk = curve.evaluate(t, 3)
+    integral = np.trapezoid(np.sum(jerk * jerk, axis=1), t)
+    tracking = np.sum(problem.weight * (curve.evaluate(problem.ref_t, 0) - problem.ref) ** 2)
+    assert objective == pytest.approx(integral + tracking, rel=1e-5)
+    # The jerk part from the control points: Σ_j cᵀHc / T³ per dimension.
+    hessian = sum(c @ JERK_HESSIAN @ c / T ** 3 for cs, T in zip(curve.ctrl, np.diff(problem.knots)) for c in cs)
+    assert hessian == pytest.approx(integral, rel=1e-5)
+
+
+def test_osqp_matches_a_dense_scipy_solve_of_the_same_qp():
+    """scipy's trust-constr (an interior-point method on the dense matrices) as the reference."""
+    problem, _ = _squeezed()
+    m = assemble(replace(problem, start=problem.start - [[problem.start[0, 0]], [0.0]] * np.eye(1, 3),
+                         end=problem.end - [[problem.start[0, 0]], [0.0]] * np.eye(1, 2),
+                         cubes=problem.cubes - [[problem.start[0, 0]], [0.0]],
+                         ref=problem.ref - [problem.start[0, 0], 0.0]))
+    P = m.P.toarray()
+    P = P + np.triu(P, 1).T
+    reference = minimize(lambda x: 0.5 * x @ P @ x + m.q @ x, np.zeros(P.shape[0]), jac=lambda x: P @ x + m.q,
+                         hess=lambda x: P, constraints=[LinearConstraint(m.A.toarray(), m.l, m.u)],
+                         method="trust-constr", options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000})
+    assert reference.status in (1, 2), reference.message
+    curve = SscSolver().solve(problem)
+    dense = PiecewiseBezier(problem.knots, control_points(problem, reference.x))
+    t = np.linspace(0.0, 1.6, 161)
+    shift = np.array([problem.start[0, 0], 0.0])
+    assert np.allclose(curve.evaluate(t, 0), dense.evaluate(t, 0) + shift, atol=1e-4, rtol=0.0)
+    assert np.allclose(curve.evaluate(t, 1), dense.evaluate(t, 1), atol=1e-3, rtol=0.0)
+    # osqp's (polished) optimum is at least as good as the interior-point one.
+    x = (replace(curve, ctrl=curve.ctrl - (shift[:, None] / np.diff(problem.knots)[:, None, None]))
+         .ctrl @ np.linalg.inv(BASIS.T)).ravel()
+    assert 0.5 * x @ P @ x + m.q @ x <= reference.fun + 1e-9 * abs(reference.fun)
+
+
+def test_the_solution_does_not_depend_on_where_along_the_road_it_is():
+    """s is solved relative to the start: the same manoeuvre 3 km further gives the same curve, shifted."""
+    near, far = SscSolver().solve(_swerve(0.0)), SscSolver().solve(_swerve(3000.0))
+    t = np.linspace(0.0, 1.6, 33)
+    assert np.allclose(far.evaluate(t, 0) - near.evaluate(t, 0), [3000.0, 0.0], atol=1e-6)
+
+
+def test_an_infeasible_corridor_is_reported_not_crashed_on():
+    problem = _swerve()
+    cubes = problem.cubes.copy()
+    cubes[1, 0] = (problem.start[0, 0] + 40.0, problem.start[0, 0] + 50.0)  # 40 m in 0.4 s from 10 m/s
+    cubes[2, 0] = (problem.start[0, 0] + 40.0, problem.start[0, 0] + 50.0)
+    with pytest.raises(MotionFailure) as failure:
+        SscSolver().solve(QpProblem(problem.knots, cubes, problem.start, problem.end, problem.ref_t, problem.ref,
+                                    problem.weight, BOUNDS))
+    assert failure.value.reason == "qp_infeasible"
+
+
+def test_bernstein_basis_partitions_unity():
+    tau = np.linspace(0.0, 1.0, 11)
+    assert np.allclose(bernstein(5, tau).sum(axis=1), 1.0)
+
+
+def test_low_speed_primitive_joins_the_states_and_never_reverses():
+    t = np.round(np.arange(0.0, 5.0 + 1e-9, 0.1), 10)
+    start = np.array([10.0, 0.0, 1.0, 0.0, 0.0, 0.0])  # (s, d, ṡ, ḋ, s̈, d̈) at 1 m/s
+    end = np.array([14.0, 0.5, 0.0, 0.0, 0.0])  # stopped 4 m on, 0.5 m to the left
+    s, d, vs, vd, a_s, a_d = low_speed_primitive(t, start, end)
+    assert (s[0], d[0], vs[0]) == pytest.approx((10.0, 0.0, 1.0))
+    assert (s[-1], d[-1], vs[-1]) == pytest.approx((14.0, 0.5, 0.0), abs=1e-9)
+    assert np.all(np.diff(s) >= -1e-12) and np.all(vs >= 0.0)
+    # d follows arc length: no sideways motion without forward motion.
+    assert np.all(np.abs(vd[vs == 0.0]) == 0.0)
+    assert np.allclose(np.gradient(s, t), vs, atol=0.05)
