@@ -1,5 +1,5 @@
-"""Closed loop with real libsumo: the EPSILON ego (behaviour layer + SSC motion layer) in 20 seeds each of
-highway_dense and merge_onramp (the ego starts on the ramp), audited every step with the scenario's RSS parameters
+"""Closed loop with real libsumo: the EPSILON ego (the default: behaviour layer only; the SSC motion layer is
+compared in its own smoke test) in 20 seeds each of highway_dense and merge_onramp (the ego starts on the ramp), audited every step with the scenario's RSS parameters
 (ad_rss).
 
 Acceptance (issue 5): no collision involving the ego, the auditor never finds the ego responsible, the ego
@@ -41,7 +41,7 @@ not_met_yet = pytest.mark.xfail(reason="issue 5: dense traffic rarely offers an 
                                        "issue note)", strict=False)
 
 
-def _epsilon_batch(name: str, duration: float, out: Path, seeds: range, *, motion_layer: bool = True
+def _epsilon_batch(name: str, duration: float, out: Path, seeds: range, *, motion_layer: bool = False
                    ) -> list[tuple[Task, Path]]:
     base = load_scenario(SCENARIOS / f"{name}.toml")
     tasks = []
@@ -90,9 +90,8 @@ def test_smoke_motion_layer_drives_more_smoothly_than_the_behaviour_trajectory(t
     """Issue 6: the same seeds with and without SSC; the executed motion's mean RMS jerk is lower with it
     (measured on merge_onramp, 60 s: seed 1 0.29 against 1.88 m/s³; seed 0, where the behaviour trajectory is
     already smooth, 0.16 against 0.13)."""
-    with_ssc = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "ssc", SMOKE_SEEDS))
-    without = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "behaviour", SMOKE_SEEDS,
-                                          motion_layer=False))
+    with_ssc = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "ssc", SMOKE_SEEDS, motion_layer=True))
+    without = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "behaviour", SMOKE_SEEDS))
     for ssc, behaviour in zip(with_ssc, without):
         assert ssc["planner"]["motion"]["outcomes"]["ssc"] > 0.9 * ssc["planner"]["cycles"]
         assert "motion" not in behaviour["planner"]
