@@ -44,7 +44,7 @@ def _backup(frame, inp):
 def test_ssc_then_previous_then_backup(frame):
     layer = MotionLayer(MotionSettings(), 0.1)
     first = _input(frame, 10.0, 100.0, 15.0)
-    plan, trajectory = layer.plan(first, _backup(frame, first))
+    plan, trajectory = layer.plan(first, lambda: _backup(frame, first))
     assert layer.stats.outcomes["ssc"] == 1
     # It starts where the ego is (front bumper 2.25 m ahead of its centre) at its speed.
     x, y, _ = frame.bumper_at(100.0, 0.0, 0.0, 0.5 * LENGTH)
@@ -53,19 +53,19 @@ def test_ssc_then_previous_then_backup(frame):
     assert np.allclose(plan.s_dot, 15.0, atol=1e-3) and np.allclose(plan.d, 0.0, atol=1e-6)
 
     blocked = _input(frame, 10.1, 101.5, 15.0, parked_at=120.0)  # its seeds run through a parked car
-    _, kept = layer.plan(blocked, _backup(frame, blocked))
+    _, kept = layer.plan(blocked, lambda: _backup(frame, blocked))
     assert kept is trajectory and layer.stats.outcomes["previous"] == 1
     assert layer.stats.failures == {"corridor_blocked": 1}
 
     late = _input(frame, 11.5, 122.5, 15.0, parked_at=140.0)  # still failing 1.5 s after the last plan
     backup = _backup(frame, late)
-    _, executed = layer.plan(late, backup)
+    _, executed = layer.plan(late, lambda: backup)
     assert executed is backup[1] and layer.stats.outcomes["backup"] == 1
 
 
 def test_walking_pace_uses_the_primitive(frame):
     layer = MotionLayer(MotionSettings(), 0.1)
     slow = _input(frame, 0.0, 100.0, 1.0)
-    plan, _ = layer.plan(slow, _backup(frame, slow))
+    plan, _ = layer.plan(slow, lambda: _backup(frame, slow))
     assert layer.stats.outcomes["primitive"] == 1
     assert plan.s[-1] == pytest.approx(105.0) and np.all(np.diff(plan.s) >= 0.0)

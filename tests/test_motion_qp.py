@@ -11,7 +11,7 @@ from scipy.optimize import LinearConstraint, minimize
 from sumo_rss.planner.motion.bezier import JERK_HESSIAN, PiecewiseBezier, bernstein
 from sumo_rss.planner.motion.primitive import low_speed_primitive
 from sumo_rss.planner.motion.ssc_qp import BASIS, DynamicBounds, MotionFailure, QpProblem, SscSolver, assemble, \
-    control_points
+    control_points, relative_to_start
 
 TOL = 1e-6
 BOUNDS = DynamicBounds()
@@ -97,10 +97,7 @@ def test_the_cost_is_jerk_plus_reference_tracking():
 def test_osqp_matches_a_dense_scipy_solve_of_the_same_qp():
     """scipy's trust-constr (an interior-point method on the dense matrices) as the reference."""
     problem, _ = _squeezed()
-    m = assemble(replace(problem, start=problem.start - [[problem.start[0, 0]], [0.0]] * np.eye(1, 3),
-                         end=problem.end - [[problem.start[0, 0]], [0.0]] * np.eye(1, 2),
-                         cubes=problem.cubes - [[problem.start[0, 0]], [0.0]],
-                         ref=problem.ref - [problem.start[0, 0], 0.0]))
+    m = assemble(relative_to_start(problem))
     P = m.P.toarray()
     P = P + np.triu(P, 1).T
     reference = minimize(lambda x: 0.5 * x @ P @ x + m.q @ x, np.zeros(P.shape[0]), jac=lambda x: P @ x + m.q,

@@ -175,10 +175,11 @@ class EpsilonPlanner:
         if self.motion is None:
             frenet, trajectory = behaviour
         else:
-            backup_plan = behaviour if backup else \
-                self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
+            def emergency() -> tuple[FrenetPlan, Trajectory]:  # only built when the motion layer falls back
+                return behaviour if backup else \
+                    self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
             frenet, trajectory = self.motion.plan(self._motion_input(frame, sim, r, vehicles, now, stop.distance),
-                                                  backup_plan)
+                                                  emergency)
         done = time.perf_counter()
         self.stats.backups += int(backup)
         self.stats.cycle_times.append(done - clock)

@@ -66,13 +66,8 @@ class PiecewiseBezier:
         span)."""
         t = np.clip(np.asarray(t, dtype=float), self.knots[0], self.knots[-1])
         j = np.clip(np.searchsorted(self.knots, t, side="right") - 1, 0, len(self.ctrl) - 1)
-        T = self.durations[j]
-        tau = (t - self.knots[j]) / T
-        diffs = np.diff(self.ctrl[j], n=derivative, axis=-1)  # [len(t), 2, 6 − k]
-        basis = bernstein(DEGREE - derivative, tau)  # [len(t), 6 − k]
-        factor = (1.0, VEL_FACTOR, ACC_FACTOR, JERK_FACTOR)[derivative]
-        scale = T ** (1 - derivative)
-        return factor * scale[:, None] * np.einsum("tdi,ti->td", diffs, basis)
+        tau = (t - self.knots[j]) / self.durations[j]
+        return np.einsum("tdi,ti->td", self.control_points(derivative)[j], bernstein(DEGREE - derivative, tau))
 
     def control_points(self, derivative: int) -> np.ndarray:
         """[N, 2, 6 − k]: the control points (in real units) of the ``derivative``-th time derivative; by the

@@ -84,7 +84,6 @@ class RoadLayer:
 
     def __init__(self, frame: RoadFrame, ego_width: float, settings: CorridorSettings):
         c = settings
-        self.frame = frame
         self.first = int(np.floor(frame.s0 / c.s_res)) - c.s_cells
         last = int(np.ceil((frame.s0 + GRID_STEP * (frame.centre.shape[1] - 1)) / c.s_res)) + c.s_cells
         self.off_road = _off_road(frame, c.s_res * np.arange(self.first, last + 1), ego_width, c)

@@ -8,6 +8,7 @@ Units: m, s, m/s, m/s².
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,11 +68,12 @@ class MotionLayer:
         self.solver = SscSolver()
         self.stats = MotionStats()
         self._previous: tuple[float, FrenetPlan, Trajectory] | None = None
-        self._roads: dict[tuple[int, float], RoadLayer] = {}  # per frame (by id, while cached) and ego width
+        self._roads: dict[tuple[RoadFrame, float], RoadLayer] = {}  # per planning frame and ego width
 
-    def plan(self, inp: MotionInput, backup: tuple[FrenetPlan, Trajectory]) -> tuple[FrenetPlan, Trajectory]:
-        """The ego's plan and its world trajectory for this cycle (``backup``: the behaviour layer's emergency
-        backup, executed when nothing better exists)."""
+    def plan(self, inp: MotionInput, backup: Callable[[], tuple[FrenetPlan, Trajectory]]
+             ) -> tuple[FrenetPlan, Trajectory]:
+        """The ego's plan and its world trajectory for this cycle (``backup`` gives the behaviour layer's emergency
+        backup, executed when nothing better exists; called only then)."""
         clock = time.perf_counter()
         half, heading = 0.5 * inp.ego_length, float(inp.ego[2][0])
         try:
@@ -85,7 +87,7 @@ class MotionLayer:
                     previous[2].end >= inp.now + self.output_step:
                 plan, trajectory, outcome = previous[1], previous[2], "previous"
             else:
-                (plan, trajectory), outcome = backup, "backup"
+                (plan, trajectory), outcome = backup(), "backup"
                 self._previous = None
         self.stats.outcomes[outcome] += 1
         self.stats.cycle_times.append(time.perf_counter() - clock)
@@ -112,9 +114,9 @@ class MotionLayer:
         return FrenetPlan(inp.frame, inp.now + t_out, s_o, d_o, np.maximum(vs, 0.0), vd, a_s, a_d), "ssc"
 
     def _road(self, inp: MotionInput) -> RoadLayer:
-        key = (id(inp.frame), inp.ego_width)
+        key = (inp.frame, inp.ego_width)
         road = self._roads.get(key)
-        if road is None or road.frame is not inp.frame:
+        if road is None:
             if len(self._roads) > 64:
                 self._roads.clear()
             road = self._roads[key] = RoadLayer(inp.frame, inp.ego_width, self.settings.corridor)

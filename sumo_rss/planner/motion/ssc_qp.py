@@ -191,6 +191,14 @@ def control_points(problem: QpProblem, x: np.ndarray) -> np.ndarray:
     return x.reshape(problem.segments, DIMS, N_CTRL) @ BASIS.T
 
 
+def relative_to_start(problem: QpProblem) -> QpProblem:
+    """The same problem with s measured from the start position (every s bound, state and reference shifted)."""
+    s0 = float(problem.start[0, 0])
+    on_s = np.array([[s0], [0.0]])
+    return replace(problem, cubes=problem.cubes - on_s, start=problem.start - on_s * np.eye(1, 3),
+                   end=problem.end - on_s * np.eye(1, 2), ref=problem.ref - on_s[:, 0])
+
+
 class SscSolver:
     """osqp, one solver per number of segments: the matrices' values are updated in place and osqp warm-starts
     from that solver's previous solution. ADMM stops at ``eps``; polishing then solves the KKT system of the
@@ -208,10 +216,7 @@ class SscSolver:
         otherwise. s is solved relative to the start (positions of hundreds of metres would swamp the absolute
         tolerance) and shifted back."""
         s0 = float(problem.start[0, 0])
-        shifted = replace(problem, cubes=problem.cubes - np.array([[s0], [0.0]]),
-                          start=problem.start - np.array([[s0], [0.0]]) * np.eye(1, 3),
-                          end=problem.end - np.array([[s0], [0.0]]) * np.eye(1, 2),
-                          ref=problem.ref - np.array([s0, 0.0]))
+        shifted = relative_to_start(problem)
         m = assemble(shifted)
         solver = self._solvers.get(problem.segments)
         if solver is None:
