@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import LinearConstraint, minimize
 
 from sumo_rss.planner.motion.bezier import JERK_HESSIAN, PiecewiseBezier, bernstein
-from sumo_rss.planner.motion.primitive import low_speed_primitive
+from sumo_rss.planner.motion.primitive import knot_indices, low_speed_primitive, path_derivatives
 from sumo_rss.planner.motion.ssc_qp import BASIS, DynamicBounds, MotionFailure, QpProblem, SscSolver, assemble, \
     control_points, relative_to_start
 
@@ -141,12 +141,42 @@ def test_bernstein_basis_partitions_unity():
 
 def test_low_speed_primitive_joins_the_states_and_never_reverses():
     t = np.round(np.arange(0.0, 5.0 + 1e-9, 0.1), 10)
-    start = np.array([10.0, 0.0, 1.0, 0.0, 0.0, 0.0])  # (s, d, ṡ, ḋ, s̈, d̈) at 1 m/s
-    end = np.array([14.0, 0.5, 0.0, 0.0, 0.0])  # stopped 4 m on, 0.5 m to the left
-    s, d, vs, vd, a_s, a_d = low_speed_primitive(t, start, end)
+    motion = np.array([[10.0, 1.0, 0.0], [14.0, 0.0, 0.0]])  # (s, ṡ, s̈): from 1 m/s to stopped 4 m on
+    path = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]])  # (d, d', d''): ending 0.5 m to the left, straight
+    s, d, vs, vd, a_s, a_d = low_speed_primitive(t, np.array([5.0]), motion, path)
     assert (s[0], d[0], vs[0]) == pytest.approx((10.0, 0.0, 1.0))
     assert (s[-1], d[-1], vs[-1]) == pytest.approx((14.0, 0.5, 0.0), abs=1e-9)
     assert np.all(np.diff(s) >= -1e-12) and np.all(vs >= 0.0)
     # d follows arc length: no sideways motion without forward motion.
     assert np.all(np.abs(vd[vs == 0.0]) == 0.0)
     assert np.allclose(np.gradient(s, t), vs, atol=0.05)
+
+
+def test_low_speed_primitive_keeps_the_behaviour_timing_and_path():
+    # The ego waits 2 s at the end of an acceleration lane, then accelerates (jerk 1 m/s³) along a path that
+    # bends left with constant d'' = 0.2 /m (a circle-like arc: d = 0.1 Δs²).
+    t_ref = np.round(np.arange(0.0, 5.0 + 1e-9, 0.2), 10)
+    go = np.maximum(t_ref - 2.0, 0.0)
+    s_ref, v_ref, a_ref = 100.0 + go ** 3 / 6.0, 0.5 * go ** 2, go
+    d_ref = 0.1 * (s_ref - 100.0) ** 2
+    heading = np.arctan(0.2 * (s_ref - 100.0))
+    k = np.concatenate([[0], knot_indices(t_ref, len(t_ref) - 1)])
+    assert np.allclose(t_ref[k], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+    path = path_derivatives(s_ref, d_ref, heading)
+    moved = path[k]
+    assert np.allclose(moved[k > 10, 2], 0.2, atol=0.02)  # d'' where the car moves; 0 while it stands
+    t = np.round(np.arange(0.0, 5.0 + 1e-9, 0.1), 10)
+    motion = np.column_stack([s_ref, v_ref, a_ref])[k]
+    s, d, vs, vd, a_s, _ = low_speed_primitive(t, t_ref[k[1:]], motion, moved)
+    at_knots = np.isin(t, t_ref[k])
+    assert np.allclose(s[at_knots], s_ref[k], atol=1e-9) and np.allclose(vs[at_knots], v_ref[k], atol=1e-9)
+    assert np.allclose(d[at_knots], d_ref[k], atol=1e-9)
+    # Standing for the first 2 s: no motion at all, forward or sideways; then it moves as asked, not later.
+    waiting = t <= 2.0
+    assert np.allclose(s[waiting], 100.0) and np.allclose(d[waiting], 0.0) and np.all(vd[waiting] == 0.0)
+    assert vs[t == 3.0][0] == pytest.approx(0.5) and np.all(np.diff(s) >= -1e-12)
+    # Between the knots it stays on the path: heading atan(ḋ/ṡ) as the path's, within 0.01 rad.
+    moving = vs > 0.05
+    path_heading = np.arctan(0.2 * (s[moving] - 100.0))
+    assert np.allclose(np.arctan2(vd[moving], vs[moving]), path_heading, atol=0.01)
+    assert np.allclose(d, 0.1 * (s - 100.0) ** 2, atol=0.01)

@@ -17,7 +17,7 @@ from ...trajectory import Trajectory
 from ..road_frame import RoadFrame
 from .corridor import Corridor, CorridorSettings, RoadLayer, build_corridor, occupancy
 from .frenet_plan import FrenetPlan
-from .primitive import low_speed_primitive
+from .primitive import knot_indices, low_speed_primitive, path_derivatives
 from .ssc_qp import DynamicBounds, MotionFailure, QpProblem, SscSolver
 
 OUTCOMES = ("ssc", "primitive", "previous", "backup")
@@ -103,12 +103,16 @@ class MotionLayer:
         k_end = int(corridor.cells[-1, 5])
         t_out = np.arange(0.0, float(inp.t[k_end]) + 0.5 * self.output_step, self.output_step)
         t_out[-1] = min(t_out[-1], float(inp.t[k_end]))
-        end = np.array([s[k_end], d[k_end], speed[k_end] * np.cos(heading[k_end]),
-                        speed[k_end] * np.sin(heading[k_end]), accel[k_end]])
         if speed[0] <= cfg.low_speed:
-            states = low_speed_primitive(t_out, start, end)
+            k = np.concatenate([[0], knot_indices(inp.t, k_end)])
+            motion = np.column_stack([s[k], speed[k] * np.cos(heading[k]), accel[k] * np.cos(heading[k])])
+            motion[0] = start[[0, 2, 4]]
+            states = low_speed_primitive(t_out, inp.t[k[1:]], motion,
+                                         path_derivatives(s[:k_end + 1], d[:k_end + 1], heading[:k_end + 1])[k])
             if corridor.contains(t_out, states[0], states[1]).all():
                 return FrenetPlan(inp.frame, inp.now + t_out, *states), "primitive"
+        end = np.array([s[k_end], d[k_end], speed[k_end] * np.cos(heading[k_end]),
+                        speed[k_end] * np.sin(heading[k_end]), accel[k_end]])
         curve = self.solver.solve(self._problem(corridor, start, end, inp, k_end))
         (s_o, d_o), (vs, vd), (a_s, a_d) = (curve.evaluate(t_out, k).T for k in range(3))
         return FrenetPlan(inp.frame, inp.now + t_out, s_o, d_o, np.maximum(vs, 0.0), vd, a_s, a_d), "ssc"
