@@ -96,3 +96,21 @@ def test_a_path_through_a_car_is_reported_not_crashed_on(road):
     with pytest.raises(MotionFailure) as failure:
         build_corridor(grid, EGO_S + 15.0 * TIMES, np.zeros(26), 15.0)
     assert failure.value.reason == "corridor_blocked"
+
+
+def test_the_road_goes_on_past_the_end_of_the_route_but_not_past_a_lane_that_ends():
+    def free_centre_cells(net, lane, route, ego_s):
+        frame = RoadFrame.build(lane_chains(net, int(net.lane_indices([lane])[0]), net.edge_indices(route)))
+        grid = occupancy(RoadLayer(frame, WIDTH, SETTINGS), TIMES, ego_s, LENGTH, WIDTH,
+                         _agents(np.full(26, -1e4), np.zeros(26)), np.inf, SETTINGS)
+        s, d = _cells(grid)
+        return s, ~grid.occupied[0][:, np.isclose(d, 0.0)].ravel()
+
+    # hw2 is the last edge of the highway (899.87 m): the car leaves the network there, so its lane goes on.
+    highway = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    s, free = free_centre_cells(highway, "hw2_1", ["hw2"], 880.0)
+    assert free[(s > 880.0) & (s < 1000.0)].all()
+    # The acceleration lane (270.31 m) ends for good: the ego's centre may not go past its end (minus half a cell).
+    merge = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    s, free = free_centre_cells(merge, "mw_merge_0", ["mw_merge", "mw_out"], 200.0)
+    assert free[(s > 200.0) & (s < 269.0)].all() and not free[s > 271.0].any()

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..lanes import CURRENT
 from ..road_frame import GRID_STEP, RoadFrame
 from .ssc_qp import MotionFailure
 
@@ -131,8 +132,12 @@ def _off_road(frame: RoadFrame, s_centres: np.ndarray, ego_width: float, c: Corr
     S = s_centres.size
     s_edges = np.stack([s_centres - 0.5 * c.s_res, s_centres + 0.5 * c.s_res])  # [2, S]
     centres = frame.centres_at(s_edges)  # [3, 2, S]
+    # A lane is there from where its chain starts to where it ends; the current chain goes on beyond the end of
+    # the ego's route unless its lane ends for good (the car leaves the network there, as SUMO removes it).
+    upper = np.minimum(frame.extent[:, 1], frame.end_s)
+    upper[CURRENT] = frame.end_s[CURRENT]
     present = frame.exists[:, None, None] & (s_edges >= frame.extent[:, 0, None, None]) & \
-        (s_edges <= np.minimum(frame.extent[:, 1], frame.end_s)[:, None, None])
+        (s_edges <= upper[:, None, None])
     half = 0.5 * frame.lane_width[:, None, None]
     edges = c.d_min - 0.5 * c.d_res + c.d_res * np.arange(c.d_cells + 1)  # [D+1] d-cell boundaries
     tol = 0.01  # [m] lanes that touch leave no gap
