@@ -210,15 +210,14 @@ def test_leader_search_matches_the_pairwise_definition():
     G, n = 12, 15
     lane = rng.integers(0, 3, (G, n))
     s = np.sort(rng.uniform(0.0, 400.0, (G, n)), axis=1)  # spread out: no two cars overlap in a lane
-    s += np.arange(n) * 13.0
+    s = rng.permuted(s + np.arange(n) * 13.0, axis=1)  # the ego (column 0) anywhere in the traffic
     d = (lane - 1) * 3.5 + rng.uniform(-1.5, 1.5, (G, n))
     v = rng.uniform(0.0, 30.0, (G, n))
     length = rng.choice([4.5, 6.0, 12.0], n)
     centres = np.broadcast_to(np.array([-3.5, 0.0, 3.5])[:, None, None], (3, G, n))
     looks = np.stack([rng.integers(0, 3, (G, n)), lane])
-    radius_class = (np.arange(n) == 0).astype(int)
-    gaps, speeds = leaders_ahead(s, d, v, centres, looks, radius_class, length, (1.25, 2.2))
-    radius = np.where(radius_class == 1, 2.2, 1.25)
+    gaps, speeds = leaders_ahead(s, d, v, centres, looks, length, (1.25, 2.2))
+    radius = np.where(np.arange(n) == 0, 2.2, 1.25)  # column 0 is the ego
     for m in range(2):
         for r in range(G):
             for i in range(n):

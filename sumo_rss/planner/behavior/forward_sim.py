@@ -188,7 +188,6 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
     length, width = vehicles.length, vehicles.width
-    radius_class = (cols == 0).astype(np.intp)  # search radius of each vehicle: 0 agent, 1 ego
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     layers_recorded: list[tuple[np.ndarray, list[tuple[np.ndarray, ...]]]] = []  # (prefix of each rollout, steps)
@@ -212,7 +211,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             scale = np.ones((G, n))
             scale[:, 0] = rollouts.ego_spacing_scale[first]
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
-            idm_three = _three_leaders(idm, G, n)
+            idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
             layers_recorded.append((inverse, []))
         s, d, v = state.x, state.y, state.speed
         if branching:
@@ -228,7 +227,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             rss_front, rss_rear = rss_agents.take(np.maximum(gap_front, 0)), rss_agents.take(np.maximum(gap_rear, 0))
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.stack([tracked, now_chain])
-        free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, radius_class, length,
+        free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
                                                (settings.agent_radius, settings.ego_radius))
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
@@ -246,16 +245,20 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                  free_speeds[1, :, :1], 0.0)
         if np.isfinite(ego_stop_s):
             gap_go[:, 0], v_go[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_go[:, 0], v_go[:, 0])
-        # Three leaders in one call: on the tracked lane, on the current lane, and the ego's 'going' leader.
-        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel(), gap_go[:, 0]])
-        v_leads = np.concatenate([v_t.ravel(), v_c.ravel(), v_go[:, 0]])
-        v_three = np.concatenate([v.ravel(), v.ravel(), v[:, 0]])
+        # The leaders in one call: on the tracked lane; on the current lane where that is another lane (a car
+        # changing lanes; elsewhere the two are the same); and the ego's 'going' leader.
+        other = np.flatnonzero(tracked.ravel() != now_chain.ravel())
+        rows = np.concatenate([np.arange(G * n), other, ego_flat])
+        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel()[other], gap_go[:, 0]])
+        v_leads = np.concatenate([v_t.ravel(), v_c.ravel()[other], v_go[:, 0]])
+        v_rows = v.ravel()[rows]
         free = np.isinf(gaps)
-        cmd = idm_speed_command(v_three, np.concatenate([v0.ravel(), v0.ravel(), v0[:, 0]]),
-                                np.where(free, v_three, v_leads),
-                                np.where(free, np.concatenate([free_gap.ravel(), free_gap.ravel(), free_gap[:, 0]]),
-                                         gaps), idm_three, dt)
-        cmd_t, cmd_c, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n:2 * G * n].reshape(G, n), cmd[2 * G * n:]
+        cmd = idm_speed_command(v_rows, v0.ravel()[rows], np.where(free, v_rows, v_leads),
+                                np.where(free, free_gap.ravel()[rows], gaps),
+                                IdmParams(**{name: values[rows] for name, values in idm_flat.items()}), dt)
+        cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:]
+        cmd_c = cmd_t.copy()
+        cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
         speed_cmd = np.minimum(cmd_t, cmd_c)
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
@@ -292,12 +295,12 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
-                  radius_class: np.ndarray, length: np.ndarray,
-                  radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                  length: np.ndarray, radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
     further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
-    search radius (``radii[radius_class]``). Vehicles are sorted along s once per rollout, so the search is
-    O(n log n) instead of O(n²). Returns the bumper gaps [m] (inf: none) and the leaders' speeds, [m, G, n]."""
+    search radius (``radii`` = (agents', the ego's); the ego is column 0). For the agents, vehicles are sorted
+    along s once per rollout, so the search is O(n log n) instead of O(n²); the ego's leaders are found directly.
+    Returns the bumper gaps [m] (inf: none) and the leaders' speeds, [m, G, n]."""
     G, n = s.shape
     cols = np.arange(n)
     row_base = (np.arange(G) * n)[:, None]
@@ -306,30 +309,33 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     rank[sorted_flat] = np.tile(cols, G)
     rank = rank.reshape(G, n)
     chains = centres.shape[0]
-    offset = np.abs(d[None] - centres).reshape(chains, -1)  # [chains, G·n]
-    member = np.stack([offset < radius for radius in radii])[:, :, sorted_flat].reshape(len(radii), chains, G, n)
+    offset = np.abs(d[None] - centres)  # [chains, G, n]
+    member = (offset.reshape(chains, -1) < radii[0])[:, sorted_flat].reshape(chains, G, n)
     # The first member strictly after each sorted position (n: none).
     position = np.where(member, cols, n)
-    after = np.minimum.accumulate(position[..., :0:-1], axis=-1)[..., ::-1]
-    following = np.concatenate([after, np.full(position.shape[:-1] + (1,), n)], axis=-1)  # [radii, chains, G, n]
-    table = ((radius_class * chains + lanes) * G + np.arange(G)[:, None]) * n + rank  # [m, G, n]
-    lead = following.ravel().take(table)
+    following = np.full((chains, G, n), n)
+    following[..., :-1] = np.minimum.accumulate(position[..., :0:-1], axis=-1)[..., ::-1]
+    lead = following.ravel().take((lanes * G + np.arange(G)[:, None]) * n + rank)  # [m, G, n]
     found = lead < n
     flat_j = np.where(found, sorted_flat.take(row_base + np.minimum(lead, n - 1)), row_base)
+    # The ego: the nearest centre ahead inside its wider band of each lane it looks at.
+    ds_ego = s - s[:, :1]  # [G, n]
+    near = (ds_ego > 0.0) & (ds_ego < LEADER_RANGE + length)
+    rows = np.arange(G)
+    in_band = offset[lanes[:, :, 0], rows] < radii[1]  # [m, G, n] within the ego's band of each lane it looks at
+    ego_lead = np.argmin(np.where(near & in_band, ds_ego, np.inf), axis=2)  # [m, G]
+    found[:, :, 0] = in_band[np.arange(lanes.shape[0])[:, None], rows, ego_lead] & near[rows, ego_lead]
+    flat_j[:, :, 0] = np.where(found[:, :, 0], row_base[:, 0] + ego_lead, row_base[:, 0])
     j = flat_j - row_base
     ds = s.ravel().take(flat_j) - s
     ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
     return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j)
 
 
-def _three_leaders(idm: IdmParams, G: int, n: int) -> IdmParams:
-    """Per-vehicle IDM parameters laid out for one flat call over [tracked-lane leaders (G·n), current-lane
-    leaders (G·n), the ego's 'going' leader (G)]."""
-    values = {}
-    for name in idm.__dataclass_fields__:
-        full = np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n))
-        values[name] = np.concatenate([full.ravel(), full.ravel(), full[:, 0]])
-    return IdmParams(**values)
+def _flat_idm(idm: IdmParams, G: int, n: int) -> dict[str, np.ndarray]:
+    """Per-vehicle IDM parameters as flat [G·n] arrays (row-major over rollouts and vehicles)."""
+    return {name: np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n)).ravel()
+            for name in idm.__dataclass_fields__}
 
 
 def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
@@ -352,8 +358,7 @@ def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.
                   radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per rollout, the nearest agent ahead of and behind the ego on the ego's target lane (-1: none);
     ``centres``: [3, R, n] lane centres at every vehicle's position."""
-    on_target = np.abs(d - np.take_along_axis(centres.transpose(1, 0, 2), target[:, None, None], axis=1)[:, 0]) \
-        < radius
+    on_target = np.abs(d - centres[target, np.arange(s.shape[0])]) < radius
     on_target[:, 0] = False
     ds = s - s[:, :1]
     front = np.where(on_target & (ds >= 0.0), ds, np.inf)
@@ -404,19 +409,19 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     gap_to_rear = s_e - half - s_ref_r
     gap_to_front = s_ref_f - s_e - half
     h = st.commit_time
-    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, rss_rear)
-    v_low_later = formulas.min_safe_speed_ahead(gap_to_rear + (v_e - v_r) * h, v_r, rss_ego, rss_rear)
-    v_high = np.minimum(formulas.max_safe_speed_behind(gap_to_front, v_f, rss_ego, rss_front),
-                        formulas.max_safe_speed_behind(gap_to_front + (v_f - v_e) * h, v_f, rss_ego, rss_front))
-    too_slow = has_r & (v_e < v_low - 1e-6)
+    # Now and h s later at constant speeds, in one call each: [2, G].
+    v_low = formulas.min_safe_speed_ahead(np.stack([gap_to_rear, gap_to_rear + (v_e - v_r) * h]), v_r, rss_ego,
+                                          rss_rear)
+    v_high = formulas.max_safe_speed_behind(np.stack([gap_to_front, gap_to_front + (v_f - v_e) * h]), v_f,
+                                            rss_ego, rss_front).min(axis=0)
+    too_slow = has_r & (v_e < v_low[0] - 1e-6)
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    rear_unsafe = has_r & (v_e < np.maximum(v_low, v_low_later) - 1e-6)
+    rear_unsafe = has_r & (v_e < v_low.max(axis=0) - 1e-6)
     front_unsafe = has_f & (v_e > v_high + 1e-6)
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
-    three = np.stack([np.zeros_like(f), f, r], axis=1)  # [G, 3] columns
-    s3, h3, v3 = (np.take_along_axis(a, three, axis=1) for a in (s, state.heading, v))
+    three = (rows[:, None], np.stack([np.zeros_like(f), f, r], axis=1))  # [G, 3]: the ego, gap front, gap rear
+    s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
     v_lat = v3 * np.sin(h3 - frame.slope(target[:, None], s3))
-    d3 = np.take_along_axis(state.y, three, axis=1)
     barrier = (rear_unsafe & laterally_safe(d3[:, 0], d3[:, 2], v_lat[:, 0], v_lat[:, 2], width[0], width[r],
                                               rss_ego, rss_rear)) | \
         (front_unsafe & laterally_safe(d3[:, 0], d3[:, 1], v_lat[:, 0], v_lat[:, 1], width[0], width[f], rss_ego,
