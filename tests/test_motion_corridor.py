@@ -98,6 +98,20 @@ def test_a_path_through_a_car_is_reported_not_crashed_on(road):
     assert failure.value.reason == "corridor_blocked"
 
 
+def test_a_corridor_ends_before_a_blocked_seed_late_in_the_horizon(road):
+    # The seeds reach a car parked 60 m ahead (its inflated box from 55.4 m, a cell from 55.2 m) at the 3.8 s seed
+    # at 15 m/s: the corridor covers the free seeds before it (>= 2 s); the QP's end state is the last of them.
+    parked = _agents(np.full(26, EGO_S + 60.0), np.zeros(26))
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, parked, np.inf, SETTINGS)
+    seeds = EGO_S + 15.0 * TIMES
+    corridor = build_corridor(grid, seeds, np.zeros(26), 15.0)
+    end = corridor.knots[-1]
+    assert end == pytest.approx(3.6) and end == TIMES[corridor.cells[-1, 5]]
+    assert not grid.occupied[corridor.cells[-1, 5], grid.s_index(seeds[TIMES == end])[0], grid.d_index(np.zeros(1))[0]]
+    for cube in corridor.cells:
+        assert not grid.occupied[cube[4]:cube[5] + 1, cube[0]:cube[1] + 1, cube[2]:cube[3] + 1].any()
+
+
 def test_the_road_goes_on_past_the_end_of_the_route_but_not_past_a_lane_that_ends():
     def free_centre_cells(net, lane, route, ego_s):
         frame = RoadFrame.build(lane_chains(net, int(net.lane_indices([lane])[0]), net.edge_indices(route)))

@@ -34,6 +34,7 @@ class CorridorSettings:
     margin: float = 0.1  # [m] added around every agent's inflated box
     step_cells: int = 5  # cells per direction and inflation round
     min_slices: int = 2  # a cube lasts at least this many time slices when free
+    min_horizon: float = 2.0  # [s] the corridor may end early at a blocked seed, not before this
     reach_accel: float = 3.0  # [m/s²] kinematic s cap ahead: s0 + v0·t + ½·a·t² + v0·reach_time
     reach_brake: float = 6.0  # [m/s²] and behind: s0 + v0·t − ½·b·t² − v0·reach_time
     reach_time: float = 1.0  # [s]
@@ -166,6 +167,13 @@ def build_corridor(grid: Grid, seeds_s: np.ndarray, seeds_d: np.ndarray, v0: flo
         raise MotionFailure("corridor_start", "the ego is outside the grid")
     keep = inside & (np.arange(ti.size) > 0)
     keep[0] = True
+    # The corridor ends before the first later seed in an occupied cell when it still spans min_horizon: the
+    # behaviour trajectory's tail may cross cells the conservative grid blocks (a lane beyond the frame's three)
+    # while the start is what the ego executes before it plans again.
+    blocked = np.flatnonzero(keep & grid.occupied[np.minimum(ti, K - 1), np.clip(si, 0, S - 1), np.clip(di, 0, D - 1)])
+    blocked = blocked[blocked > 0]
+    if blocked.size and grid.times[ti[blocked[0] - 1]] >= c.min_horizon:
+        keep[blocked[0]:] = False
     si, di, ti = si[keep], di[keep], ti[keep]
     if si.size < 2:
         raise MotionFailure("corridor_seeds", "fewer than two seeds inside the grid")
