@@ -92,7 +92,7 @@ class PlannerOverrides:
     sim_step_s: float = 0.2  # forward-simulation step
     scenarios_k: int = 4  # CFB: most likely intention combinations kept
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch
-    motion_layer: bool = False  # SSC corridor + Bézier QP (off by default: it stalls merges, see docs/motion.md)
+    motion_layer: bool = True  # SSC corridor + Bézier QP; False executes the behaviour trajectory (docs/motion.md)
     rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
 
 

@@ -1,6 +1,6 @@
-"""Closed loop with real libsumo: the EPSILON ego (the default: behaviour layer only; the SSC motion layer is
-compared in its own smoke test) in 20 seeds each of highway_dense and merge_onramp (the ego starts on the ramp), audited every step with the scenario's RSS parameters
-(ad_rss).
+"""Closed loop with real libsumo: the EPSILON ego (behaviour layer and SSC motion layer, the default; the
+behaviour trajectory alone is compared in its own smoke test) in 20 seeds each of highway_dense and merge_onramp
+(the ego starts on the ramp), audited every step with the scenario's RSS parameters (ad_rss).
 
 Acceptance (issue 5): no collision involving the ego, the auditor never finds the ego responsible, the ego
 changes lanes on the highway, and from the ramp it merges onto the motorway before the acceleration lane ends.
@@ -10,9 +10,10 @@ The 20-seed runs take ~20 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE
 scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) is asserted
 strictly. Lane changes and merging within 240 s are xfail: under ad_rss a change needs an RSS-safe gap of
 ~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's notes), and the ego then keeps
-its lane or waits at the end of the acceleration lane (measured: 14 of 20 ramp runs merge by 240 s). The suite always runs a 2-seed smoke version: no ego
-collision, never responsible, the planner drives every step, the ego gets onto the acceleration lane and never
-past its end.
+its lane or waits at the end of the acceleration lane (measured 2026-11-21: 14 of 20 ramp runs merge by 240 s
+with SSC, 13 with the behaviour trajectory alone; no lane change completed in 20 highway runs). The suite always
+runs a 2-seed smoke version: no ego collision, never responsible, the planner drives every step, the ego gets onto
+the acceleration lane and never past its end.
 """
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ not_met_yet = pytest.mark.xfail(reason="issue 5: dense traffic rarely offers an 
                                        "issue note)", strict=False)
 
 
-def _epsilon_batch(name: str, duration: float, out: Path, seeds: range, *, motion_layer: bool = False
+def _epsilon_batch(name: str, duration: float, out: Path, seeds: range, *, motion_layer: bool = True
                    ) -> list[tuple[Task, Path]]:
     base = load_scenario(SCENARIOS / f"{name}.toml")
     tasks = []
@@ -90,8 +91,9 @@ def test_smoke_motion_layer_drives_more_smoothly_than_the_behaviour_trajectory(t
     """Issue 6: the same seeds with and without SSC; the executed motion's mean RMS jerk is lower with it
     (measured on merge_onramp, 60 s: seed 1 0.29 against 1.88 m/s³; seed 0, where the behaviour trajectory is
     already smooth, 0.16 against 0.13)."""
-    with_ssc = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "ssc", SMOKE_SEEDS, motion_layer=True))
-    without = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "behaviour", SMOKE_SEEDS))
+    with_ssc = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "ssc", SMOKE_SEEDS))
+    without = _assert_safe(_epsilon_batch("merge_onramp", 60.0, tmp_path / "behaviour", SMOKE_SEEDS,
+                                          motion_layer=False))
     for ssc, behaviour in zip(with_ssc, without):
         assert ssc["planner"]["motion"]["outcomes"]["ssc"] > 0.9 * ssc["planner"]["cycles"]
         assert "motion" not in behaviour["planner"]
