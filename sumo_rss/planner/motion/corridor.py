@@ -172,7 +172,7 @@ def build_corridor(grid: Grid, seeds_s: np.ndarray, seeds_d: np.ndarray, v0: flo
     # while the start is what the ego executes before it plans again.
     blocked = np.flatnonzero(keep & grid.occupied[np.minimum(ti, K - 1), np.clip(si, 0, S - 1), np.clip(di, 0, D - 1)])
     blocked = blocked[blocked > 0]
-    if blocked.size and grid.times[ti[blocked[0] - 1]] >= c.min_horizon:
+    if blocked.size and grid.times[ti[np.flatnonzero(keep[:blocked[0]])[-1]]] >= c.min_horizon:
         keep[blocked[0]:] = False
     si, di, ti = si[keep], di[keep], ti[keep]
     if si.size < 2:
