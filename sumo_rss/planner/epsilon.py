@@ -169,15 +169,13 @@ class EpsilonPlanner:
         winner = n_real if backup else chosen
         self.manager.commit(everything[winner], now)
         r = self._likely(policy_of, weight_of, winner)
-        behaviour = self._rollout_plan(frame, sim, r, vehicles, now)
         self._curvature = float(sim.curvature[r, 1, 0])
-        t_behaviour = time.perf_counter()
         if self.motion is None:
-            frenet, trajectory = behaviour
-        else:
+            frenet, trajectory = self._rollout_plan(frame, sim, r, vehicles, now)
+        t_behaviour = time.perf_counter()
+        if self.motion is not None:
             def emergency() -> tuple[FrenetPlan, Trajectory]:  # only built when the motion layer falls back
-                return behaviour if backup else \
-                    self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
+                return self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
             frenet, trajectory = self.motion.plan(self._motion_input(frame, sim, r, vehicles, now, stop.distance),
                                                   emergency)
         done = time.perf_counter()

@@ -278,7 +278,7 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     if not np.all(keep):
         kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
             x[keep] for x in (kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
-    projected = np.flatnonzero((frame.edge[ref] != frame.edge[other]) & ~same)
+    opposite = np.flatnonzero(~same)  # the projected pairs (opposite edges are never the same edge)
     lon_gap = np.abs(s_o - frame.s[ref]) - half_lon_o - frame.half_lon[ref]
     lat_gap = np.abs(d_o - frame.d[ref]) - half_lat_o - frame.half_lat[ref]
     other_left = d_o > frame.d[ref]
@@ -287,13 +287,12 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     p = frame.params
     reach_o, stop_r = frame.reach_min[other], frame.stop_max[ref]
     lat_left_o, lat_right_o = frame.lat_reach_as_left[other], frame.lat_reach_as_right[other]
-    if projected.size:
-        p_x = p.take(other[projected])
-        reach_o[projected] = lon_reach(np.maximum(v_lon_o[projected], 0.0), p_x, p_x.lon_brake_min)
-        lat_left_o[projected] = lateral_reach(-v_lat_o[projected], p_x)
-        lat_right_o[projected] = lateral_reach(v_lat_o[projected], p_x)
+    if opposite.size:
+        p_x = p.take(other[opposite])
+        reach_o[opposite] = lon_reach(np.maximum(v_lon_o[opposite], 0.0), p_x, p_x.lon_brake_min)
+        lat_left_o[opposite] = lateral_reach(-v_lat_o[opposite], p_x)
+        lat_right_o[opposite] = lateral_reach(v_lat_o[opposite], p_x)
     lon_d_min = combine_same_dir(reach_o, stop_r, p.min_lon_gap[other])
-    opposite = np.flatnonzero(~same)
     if opposite.size:  # both cars in their correct lanes: both brake at b_corr; speeds towards each other
         r, o = ref[opposite], other[opposite]
         p_r, p_o = p.take(r), p.take(o)

@@ -341,17 +341,19 @@ def _flat_idm(idm: IdmParams, G: int, n: int) -> dict[str, np.ndarray]:
 def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
               v_lead: np.ndarray, margin: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A lane that ends is a stopped leader ``margin`` m before its end."""
-    end_gap = frame.end_s[chain] - margin - s - 0.5 * length[None, :]
-    closer = end_gap < gap
-    return np.where(closer, end_gap, gap), np.where(closer, 0.0, v_lead)
+    return _stopped_leader(frame.end_s[chain] - margin - s - 0.5 * length[None, :], gap, v_lead)
 
 
 def _stop_line(stop_s: float, s: np.ndarray, length: float, gap: np.ndarray,
                v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ego's leader with a stop line at ``stop_s`` (front bumper) as a stopped leader where it is nearer."""
-    line_gap = stop_s - s - 0.5 * length
-    closer = line_gap < gap
-    return np.where(closer, line_gap, gap), np.where(closer, 0.0, v_lead)
+    return _stopped_leader(stop_s - s - 0.5 * length, gap, v_lead)
+
+
+def _stopped_leader(stop_gap: np.ndarray, gap: np.ndarray, v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(gap, leader speed) with a standing obstacle ``stop_gap`` [m] ahead taking the leader's place where nearer."""
+    closer = stop_gap < gap
+    return np.where(closer, stop_gap, gap), np.where(closer, 0.0, v_lead)
 
 
 def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray,
