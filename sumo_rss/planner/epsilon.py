@@ -169,7 +169,7 @@ class EpsilonPlanner:
         winner = n_real if backup else chosen
         self.manager.commit(everything[winner], now)
         r = self._likely(policy_of, weight_of, winner)
-        self._curvature = float(sim.curvature[r, 1, 0])
+        self._curvature = float(sim.ego_curvature[r, 1])
         if self.motion is None:
             frenet, trajectory = self._rollout_plan(frame, sim, r, vehicles, now)
         t_behaviour = time.perf_counter()
@@ -323,7 +323,7 @@ class EpsilonPlanner:
         as front-bumper states."""
         step = self.config.output_step
         t = np.arange(0.0, float(sim.t[-1]) + 0.5 * step, step)
-        accel = np.concatenate([sim.accel[r, 1:, 0], sim.accel[r, -1:, 0]])
+        accel = np.concatenate([sim.ego_accel[r, 1:], sim.ego_accel[r, -1:]])
         s, d, h, speed, accel = (np.interp(t, sim.t, a) for a in (sim.s[r, :, 0], sim.d[r, :, 0],
                                                                   sim.heading[r, :, 0], sim.speed[r, :, 0], accel))
         x, y, heading = frame.bumper_at(s, d, h, 0.5 * float(vehicles.length[0]))
@@ -334,7 +334,7 @@ class EpsilonPlanner:
                       stop_distance: float) -> MotionInput:
         """The motion layer's view of rollout ``r`` (the winner in its most likely scenario): the ego's and the
         agents' simulated trajectories; the stop line as a bound on the ego's centre."""
-        ego = tuple(a[r, :, 0] for a in (sim.s, sim.d, sim.heading, sim.speed, sim.accel))
+        ego = (*(a[r, :, 0] for a in (sim.s, sim.d, sim.heading, sim.speed)), sim.ego_accel[r])
         agents = (sim.s[r, :, 1:], sim.d[r, :, 1:], sim.heading[r, :, 1:], vehicles.length[1:], vehicles.width[1:])
         return MotionInput(frame, now, sim.t, ego, float(vehicles.length[0]), float(vehicles.width[0]), agents,
                            float(vehicles.s[0]) + stop_distance)

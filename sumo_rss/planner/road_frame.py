@@ -19,6 +19,15 @@ GRID_STEP = 1.0  # [m] spacing of the offset profiles
 
 
 @dataclass(frozen=True, eq=False)
+class FrameCells:
+    """Frame positions located on the profiles' grid (:meth:`RoadFrame.locate`), for several look-ups at the same
+    positions: the cell ``index`` and the ``fraction`` [0, 1) of the way to the next grid point."""
+
+    index: np.ndarray
+    fraction: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class RoadFrame:
     """``centre[c, g]``: d of chain c's centre line at s = s0 + g·GRID_STEP (edge values continued where the
     chain does not reach; ``extent[c]`` is where it does). ``end_s[c]``: where chain c's lane ends for good
@@ -74,22 +83,28 @@ class RoadFrame:
                    np.arctan(np.diff(centre, axis=1) / GRID_STEP))
 
     def centre_d(self, chain: Any, s: Any) -> np.ndarray:
-        """d [m] of the centre line of ``chain`` (RIGHT/CURRENT/LEFT, any array shape) at frame positions ``s``."""
-        i, f = self._grid(s)
+        """d [m] of the centre line of ``chain`` (RIGHT/CURRENT/LEFT, any array shape) at frame positions ``s``
+        (or their :class:`FrameCells`)."""
+        i, f = self._cells(s)
         base = np.asarray(chain, dtype=np.intp) * self.centre.shape[1] + i
         flat = self.centre.ravel()
         return flat[base] * (1.0 - f) + flat[base + 1] * f
 
     def centres_at(self, s: Any) -> np.ndarray:
-        """[3, *s.shape]: d of every chain's centre line at ``s``."""
-        i, f = self._grid(s)
+        """[3, *s.shape]: d of every chain's centre line at ``s`` (or their :class:`FrameCells`)."""
+        i, f = self._cells(s)
         return self.centre[:, i] * (1.0 - f) + self.centre[:, i + 1] * f
 
-    def _grid(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
+    def locate(self, s: Any) -> FrameCells:
+        """The grid cells of frame positions ``s`` [m] (clamped to the profiles' ends)."""
         g = np.minimum(np.maximum((np.asarray(s, dtype=float) - self.s0) / GRID_STEP, 0.0),
                        self.centre.shape[1] - 1.000001)
         i = g.astype(np.intp)
-        return i, g - i
+        return FrameCells(i, g - i)
+
+    def _cells(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
+        cells = s if isinstance(s, FrameCells) else self.locate(s)
+        return cells.index, cells.fraction
 
     def chain_of_offsets(self, centres: np.ndarray, s: Any, d: Any) -> np.ndarray:
         """The existing chain nearest to each (s, d), given ``centres = centres_at(s)``."""
@@ -100,15 +115,17 @@ class RoadFrame:
         return np.argmin(np.where(usable, np.abs(d - centres), np.inf), axis=0)
 
     def slope(self, chain: Any, s: Any) -> np.ndarray:
-        """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (lanes that converge)."""
-        i, _ = self._grid(s)
+        """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (or their :class:`FrameCells`;
+        lanes that converge)."""
+        i, _ = self._cells(s)
         return self.slope_grid.ravel().take(np.asarray(chain, dtype=np.intp) * self.slope_grid.shape[1] + i)
 
-    def lane_ahead(self, chain: Any, s: Any, slope: Any, ahead: Any) -> np.ndarray:
-        """d [m] of ``chain``'s centre line ``ahead`` [m] beyond ``s``, continued straight along its direction
-        ``slope`` = :meth:`slope` (chain, s) [rad] (the pure-pursuit target of a car on that lane: bends are taken
-        when reached, not anticipated)."""
-        return self.centre_d(chain, s) + np.tan(slope) * ahead
+    @staticmethod
+    def lane_ahead(centre_d: Any, slope: Any, ahead: Any) -> np.ndarray:
+        """d [m] of a lane's centre line ``ahead`` [m] beyond s, continued straight from its offset ``centre_d``
+        [m] at s along its direction ``slope`` = :meth:`slope` (chain, s) [rad] (the pure-pursuit target of a car
+        on that lane: bends are taken when reached, not anticipated)."""
+        return centre_d + np.tan(slope) * ahead
 
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ...angles import wrap_angle
+from ...angles import cos_sin, wrap_angle
 
 V0_STOP = 1e-3  # [m/s] a desired speed below this means "stop"
 
@@ -95,8 +95,9 @@ def pure_pursuit_steer(x: Any, y: Any, heading: Any, target_x: Any, target_y: An
     """Steering angle [rad] towards the target point: δ = atan2(2·L·sin α, ‖target − position‖), α the bearing
     of the target relative to the heading (rear-axle reference)."""
     dx, dy = np.asarray(target_x) - np.asarray(x), np.asarray(target_y) - np.asarray(y)
-    alpha = wrap_angle(np.arctan2(dy, dx) - np.asarray(heading))
-    return np.arctan2(2.0 * wheelbase * np.sin(alpha), np.hypot(dx, dy))
+    cos_h, sin_h = cos_sin(heading)
+    # sin α = (dy·cos h − dx·sin h) / ‖d‖; both arguments of the arctangent scaled by ‖d‖ > 0.
+    return np.arctan2(2.0 * wheelbase * (dy * cos_h - dx * sin_h), dx * dx + dy * dy)
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,10 +139,8 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     v_mid = 0.5 * (v + v_new)
     curvature_new = np.tan(steer_new) / L
     w0, w_mid, w_end = v * curvature, v_mid * np.tan(0.5 * (steer + steer_new)) / L, v_new * curvature_new
-    th2 = th + dt / 2 * w0
-    th3 = th + dt / 2 * w_mid
-    th4 = th + dt * w_mid
-    x = x + dt / 6 * (v * np.cos(th) + 2 * v_mid * (np.cos(th2) + np.cos(th3)) + v_new * np.cos(th4))
-    y = y + dt / 6 * (v * np.sin(th) + 2 * v_mid * (np.sin(th2) + np.sin(th3)) + v_new * np.sin(th4))
+    cos, sin = cos_sin(np.stack([th, th + dt / 2 * w0, th + dt / 2 * w_mid, th + dt * w_mid]))  # RK4 stages' θ
+    x = x + dt / 6 * (v * cos[0] + 2 * v_mid * (cos[1] + cos[2]) + v_new * cos[3])
+    y = y + dt / 6 * (v * sin[0] + 2 * v_mid * (sin[1] + sin[2]) + v_new * sin[3])
     th = th + dt / 6 * (w0 + 4 * w_mid + w_end)
     return BicycleState(x, y, wrap_angle(th), v_new, (v_new - v) / dt, curvature_new)

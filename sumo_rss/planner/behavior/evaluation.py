@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ...angles import cos_sin
 from ...rss import formulas
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
@@ -70,7 +71,7 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     the frame (a ramp and the motorway) do not read as cars driving at each other."""
     s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
     ds = s[..., 1:] - s[..., :1]
-    v_lat = v * np.sin(h - frame.slope(sim.chain, s))
+    v_lat = v * cos_sin(h - frame.slope(sim.chain, s))[1]
     lat_unsafe = ~laterally_safe(d[..., :1], d[..., 1:], v_lat[..., :1], v_lat[..., 1:], width[0], width[1:],
                                  rss_ego, rss_agents)
     front = ds >= 0.0

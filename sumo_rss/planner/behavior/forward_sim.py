@@ -20,9 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from ...angles import cos_sin
 from ...rss import formulas
 from ..lanes import LEFT
-from ..road_frame import RoadFrame
+from ..road_frame import FrameCells, RoadFrame
 from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, clamp, idm_speed_command, \
     lookahead, pure_pursuit_steer
 
@@ -97,8 +98,8 @@ class SimResult:
     d: np.ndarray
     heading: np.ndarray
     speed: np.ndarray
-    accel: np.ndarray
-    curvature: np.ndarray
+    ego_accel: np.ndarray  # [R, T+1] the ego's acceleration during the step before each sample [m/s²]
+    ego_curvature: np.ndarray  # [R, T+1] [1/m]
     valid: np.ndarray  # [R] no collision of the ego with anyone
     ego_lead_gap: np.ndarray  # [R, T+1] ego's leader on its tracked lane: bumper gap [m] (inf: none)
     ego_lead_speed: np.ndarray  # [R, T+1]
@@ -194,6 +195,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     valid = np.ones(1, dtype=bool)
     barrier_steps = np.zeros(1, dtype=int)
     layer = -1
+    cells = frame.locate(state.x)  # where the cars are on the frame's grid (shared by this step's look-ups)
     for k in range(n_steps + 1):
         branching = k < n_steps and (layer < 0 or k >= layer_end[layer])
         if branching:  # a new layer: every prefix continues as its children
@@ -202,6 +204,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             state = BicycleState(*(a[parent] for a in (state.x, state.y, state.heading, state.speed, state.accel,
                                                        state.curvature)))
             valid, barrier_steps = valid[parent], barrier_steps[parent]
+            cells = FrameCells(cells.index[parent], cells.fraction[parent])
             G = first.size
             backup = rollouts.ego_backup[first]
             tracked = rollouts.agent_chain[first].copy()
@@ -215,16 +218,15 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             layers_recorded.append((inverse, []))
         s, d, v = state.x, state.y, state.speed
         if branching:
-            lane_slope = frame.slope(tracked, s)  # direction of each car's tracked lane in the frame [rad]
+            lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
                             width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
                             length[1:] + settings.inflation, width[1:] + settings.inflation)
         valid = valid & ~np.any(hit, axis=1)
-        centres = frame.centres_at(s)  # [3, G, n]
+        centres = frame.centres_at(cells)  # [3, G, n]
         now_chain = frame.chain_of_offsets(centres, s, d)
         if branching:
-            gap_front, gap_rear = _gap_vehicles(centres, s, d, tracked[:, 0], settings.ego_radius)
-            rss_front, rss_rear = rss_agents.take(np.maximum(gap_front, 0)), rss_agents.take(np.maximum(gap_rear, 0))
+            gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.stack([tracked, now_chain])
         free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
@@ -234,8 +236,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         if np.isfinite(ego_stop_s):
             gap_t[:, 0], v_t[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_t[:, 0], v_t[:, 0])
             gap_c[:, 0], v_c[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_c[:, 0], v_c[:, 0])
-        layers_recorded[-1][1].append((s, d, state.heading, v, state.accel, state.curvature, now_chain, gap_t[:, 0],
-                                       v_t[:, 0]))
+        layers_recorded[-1][1].append((s, d, state.heading, v, state.accel[:, 0], state.curvature[:, 0], now_chain,
+                                       gap_t[:, 0], v_t[:, 0]))
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
@@ -262,35 +264,37 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         speed_cmd = np.minimum(cmd_t, cmd_c)
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
+        lane_target = frame.lane_ahead(np.take_along_axis(centres, tracked[None], axis=0)[0], lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
         if np.any(changing):
-            lc_cmd, barrier = _lane_change_command(frame, tracked[:, 0], state, length, width, gap_front, gap_rear,
-                                                   rss_front, rss_rear, idm, v0, settings, rss_ego, dt)
+            lc_cmd, barrier = _lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm, v0, settings,
+                                                   rss_ego, dt)
             hold = changing & barrier
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
-            centre_target = frame.lane_ahead(tracked[:, 0], s[:, 0], lane_slope[:, 0], ell[:, 0])
-            target_offset[:, 0] = np.where(hold, d[:, 0] - centre_target, 0.0)
+            target_offset[:, 0] = np.where(hold, d[:, 0] - lane_target[:, 0], 0.0)
         speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
         # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame (a bend of
         # the lane, or of the frame's centre line beside a straight lane) the car turns with it at once, and pure
         # pursuit aims along the lane's direction here, correcting only the offset from it. Aiming at the lane
         # beyond a bend made cars cut it and then overshoot: a motorway car beside the bending on-ramp drifted 3 m
         # into the ramp's lane in the simulation.
-        target_d = frame.lane_ahead(tracked, s, lane_slope, ell) + target_offset
+        target_d = lane_target + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         moved = bicycle_step(state, speed_cmd, steer, limits, dt)
-        slope_reached = frame.slope(tracked, moved.x)
+        cells = frame.locate(moved.x)
+        slope_reached = frame.slope(tracked, cells)
         state = replace(moved, heading=moved.heading + slope_reached - lane_slope)
         lane_slope = slope_reached
-    # Every rollout's samples: each layer's steps of its prefix (one gather per layer and quantity).
-    per_layer = [[np.stack(values, axis=1)[inverse] for values in zip(*steps)] for inverse, steps in layers_recorded]
-    s, d, heading, speed, accel, curvature, chain, lead_gap, lead_speed = (
-        np.concatenate(parts, axis=1) for parts in zip(*per_layer))
-    return SimResult(t, layer_end, s, d, heading, speed, accel, curvature, valid[inverse], lead_gap, lead_speed,
+    # Every rollout's samples: each layer's steps of its prefix (one gather per layer and quantity), assembled
+    # time-major and returned as [R, T+1, ...] views.
+    per_layer = [[np.stack(values)[:, inverse] for values in zip(*steps)] for inverse, steps in layers_recorded]
+    s, d, heading, speed, ego_accel, ego_curvature, chain, lead_gap, lead_speed = (
+        np.concatenate(parts).swapaxes(0, 1) for parts in zip(*per_layer))
+    return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid[inverse], lead_gap, lead_speed,
                      barrier_steps[inverse], chain)
 
 
@@ -356,27 +360,39 @@ def _stopped_leader(stop_gap: np.ndarray, gap: np.ndarray, v_lead: np.ndarray) -
     return np.where(closer, stop_gap, gap), np.where(closer, 0.0, v_lead)
 
 
-def _gap_vehicles(centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray,
-                  radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per rollout, the nearest agent ahead of and behind the ego on the ego's target lane (-1: none);
-    ``centres``: [3, R, n] lane centres at every vehicle's position."""
-    on_target = np.abs(d - centres[target, np.arange(s.shape[0])]) < radius
-    on_target[:, 0] = False
-    ds = s - s[:, :1]
-    front = np.where(on_target & (ds >= 0.0), ds, np.inf)
-    rear = np.where(on_target & (ds < 0.0), -ds, np.inf)
-    f, r = np.argmin(front, axis=1), np.argmin(rear, axis=1)
-    rows = np.arange(s.shape[0])
-    return np.where(np.isinf(front[rows, f]), -1, f), np.where(np.isinf(rear[rows, r]), -1, r)
+@dataclass(frozen=True, eq=False)
+class GapCars:
+    """Per rollout, the nearest agents ahead of and behind the ego on its target lane: ``index`` [G, 2] (front,
+    rear; 0 where ``present`` is False) and their RSS parameters (``params`` [G, 2]; ``front``, ``rear`` [G])."""
+
+    index: np.ndarray
+    present: np.ndarray
+    params: Any
+    front: Any
+    rear: Any
+
+    @classmethod
+    def find(cls, centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray, radius: float,
+             rss_agents: Any) -> GapCars:
+        """``centres``: [3, G, n] lane centres at every vehicle's position; ``target`` [G] the ego's target chain;
+        ``rss_agents`` the RSS parameters of every vehicle."""
+        on_target = np.abs(d - centres[target, np.arange(s.shape[0])]) < radius
+        on_target[:, 0] = False
+        ds = s - s[:, :1]
+        distance = np.stack([np.where(on_target & (ds >= 0.0), ds, np.inf),
+                             np.where(on_target & (ds < 0.0), -ds, np.inf)], axis=2)  # [G, n, 2]
+        index = np.argmin(distance, axis=1)
+        present = np.isfinite(np.take_along_axis(distance, index[:, None, :], axis=1)[:, 0])
+        index = np.where(present, index, 0)
+        params = rss_agents.take(index)
+        return cls(index, present, params, params.take(np.s_[:, 0]), params.take(np.s_[:, 1]))
 
 
 def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, length: np.ndarray,
-                         width: np.ndarray, gap_front: np.ndarray, gap_rear: np.ndarray, rss_front: Any, rss_rear: Any,
-                         idm: IdmParams, v0: np.ndarray, st: SimSettings, rss_ego: Any,
-                         dt: float) -> tuple[np.ndarray, np.ndarray]:
+                         width: np.ndarray, gap: GapCars, idm: IdmParams, v0: np.ndarray, st: SimSettings,
+                         rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back;
-    ``target``: the ego's target chain per rollout; ``rss_front`` / ``rss_rear``: the RSS parameters of the gap
-    cars (any row where there is none).
+    ``target``: the ego's target chain per rollout; ``gap``: the cars around the gap it aims at.
 
     The barrier is RSS's cut-in rule: the ego may not make a gap car laterally unsafe while that pair is
     longitudinally unsafe, now or ``commit_time`` s later at constant speeds (the crossing takes time). Once the
@@ -384,8 +400,8 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     car keeps its distance), so the barrier no longer holds the ego half-way."""
     s, v = state.x, state.speed
     rows = np.arange(s.shape[0])
-    has_f, has_r = gap_front >= 0, gap_rear >= 0
-    f, r = np.maximum(gap_front, 0), np.maximum(gap_rear, 0)
+    has_f, has_r = gap.present[:, 0], gap.present[:, 1]
+    f, r = gap.index[:, 0], gap.index[:, 1]
     s_e, v_e = s[:, 0], v[:, 0]
     s0, T = idm.s0[:, 0], idm.headway[:, 0]
     half = 0.5 * length[0]
@@ -407,27 +423,26 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
                      np.where(has_f, np.minimum(v_pref, v_ref_f), np.where(has_r, np.maximum(v_ref_r, v_pref), v_e)))
     a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
     cmd = np.maximum(v_e + a_track * dt, 0.0)
-    # RSS towards the gap cars (bumper gaps): the ego ahead of the rear car, behind the front car.
+    # RSS towards the gap cars (bumper gaps): the ego behind the front car and ahead of the rear car. At constant
+    # speeds the safe distances stay the same for commit_time; only the gaps change.
     gap_to_rear = s_e - half - s_ref_r
     gap_to_front = s_ref_f - s_e - half
     h = st.commit_time
-    # Now and h s later at constant speeds, in one call each: [2, G].
-    v_low = formulas.min_safe_speed_ahead(np.stack([gap_to_rear, gap_to_rear + (v_e - v_r) * h]), v_r, rss_ego,
-                                          rss_rear)
-    v_high = formulas.max_safe_speed_behind(np.stack([gap_to_front, gap_to_front + (v_f - v_e) * h]), v_f,
-                                            rss_ego, rss_front).min(axis=0)
-    too_slow = has_r & (v_e < v_low[0] - 1e-6)
+    d_min_rear = formulas.lon_safe_distance_same_dir(v_r, v_e, gap.rear, rss_ego)
+    d_min_front = formulas.lon_safe_distance_same_dir(v_e, v_f, rss_ego, gap.front)
+    too_slow = has_r & ~formulas.is_safe_distance(gap_to_rear, d_min_rear)
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    rear_unsafe = has_r & (v_e < v_low.max(axis=0) - 1e-6)
-    front_unsafe = has_f & (v_e > v_high + 1e-6)
+    rear_unsafe = has_r & ~formulas.is_safe_distance(np.minimum(gap_to_rear, gap_to_rear + (v_e - v_r) * h),
+                                                     d_min_rear)
+    front_unsafe = has_f & ~formulas.is_safe_distance(np.minimum(gap_to_front, gap_to_front + (v_f - v_e) * h),
+                                                      d_min_front)
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
-    three = (rows[:, None], np.stack([np.zeros_like(f), f, r], axis=1))  # [G, 3]: the ego, gap front, gap rear
+    three = (rows[:, None], np.concatenate([np.zeros_like(f)[:, None], gap.index], axis=1))  # [G, 3]: ego, front, rear
     s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
-    v_lat = v3 * np.sin(h3 - frame.slope(target[:, None], s3))
-    barrier = (rear_unsafe & laterally_safe(d3[:, 0], d3[:, 2], v_lat[:, 0], v_lat[:, 2], width[0], width[r],
-                                              rss_ego, rss_rear)) | \
-        (front_unsafe & laterally_safe(d3[:, 0], d3[:, 1], v_lat[:, 0], v_lat[:, 1], width[0], width[f], rss_ego,
-                                         rss_front))
+    v_lat = v3 * cos_sin(h3 - frame.slope(target[:, None], s3))[1]
+    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
+                              gap.params)  # [G, 2]: to the front and the rear car
+    barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
     return cmd, barrier
 
 
