@@ -282,6 +282,29 @@ def test_a_change_under_way_is_not_held_half_way_when_the_rear_car_closes_in(hig
     assert sim.barrier_steps[0] == 0 and sim.d[0, -1, 0] > 3.0
 
 
+@pytest.mark.parametrize("rear_gap", [100.0, 200.0])
+def test_the_evasive_speed_up_accelerates_beyond_the_comfort_limit_only_before_an_rss_unsafe_rear_car(highway,
+                                                                                                       rear_gap):
+    """epsilon.md §3.6: with the gap's rear car RSS-unsafe (100 m behind at 30 m/s; it needs 147 m behind the
+    20 m/s ego) the ego speeds up into the gap at up to 2 m/s² (the jerk limit, 3 m/s³, ramps it up), although its
+    desired speed is its own speed; beside a safe gap (200 m) it keeps to its 1 m/s² limit and its speed."""
+    _, frame = highway
+    p = RssParams()
+    vehicles = Vehicles(np.array([200.0, 200.0 - 4.5 - rear_gap]), np.array([1.0, 3.5]), np.array([0.05, 0.0]),
+                        np.array([20.0, 30.0]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.8),
+                        np.array([CURRENT, LEFT]))
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, LEFT]]), np.array([0.0, 30.0]))
+    settings = SimSettings()
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, settings, p, RssParamArrays.stack([p] * 2))
+    peak = float(sim.ego_accel[0].max())
+    if rear_gap < 147.0:
+        assert settings.ego_limits.max_accel + 0.5 < peak <= settings.evasive_accel + 1e-9
+        assert np.allclose(sim.ego_accel[0, 1:4], [0.6, 1.2, 1.8])  # 3 m/s³ over 0.2 s steps
+    else:
+        assert peak <= settings.ego_limits.max_accel + 1e-9 and sim.speed[0, -1, 0] <= 20.0 + 1e-9
+
+
 def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
     _, frame = highway
     p = RssParams()

@@ -48,7 +48,9 @@ class SimSettings:
     track_pos_gain: float = 0.4  # K_s [1/s]
     track_speed_gain: float = 0.8  # K_v' [1/s], tracking acceleration clipped to ±1 m/s²
     preferred_blend: float = 0.1
-    evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe
+    evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe (IDM a, limit)
+    evasive_headway: float = 0.6  # [s] the ego's IDM T while it speeds up
+    evasive_extra_speed: float = 10.0  # [m/s] its desired speed: the rear car's RSS-safe minimum plus this
     inflation: float = 0.1  # [m] added to length and width in the strict collision check
     lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
     commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
@@ -267,12 +269,21 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         lane_target = frame.lane_ahead(np.take_along_axis(centres, tracked[None], axis=0)[0], lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
+        evasive = np.zeros(G, dtype=bool)
         if np.any(changing):
-            lc_cmd, barrier = _lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm, v0, settings,
-                                                   rss_ego, dt)
+            lc_cmd, barrier, evasive_v0 = _lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm,
+                                                               v0, settings, rss_ego, dt)
             hold = changing & barrier
+            evasive = changing & np.isfinite(evasive_v0)
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
+            if np.any(evasive):  # speeding up, the ego still reacts to the leader in its lane, with the evasive IDM
+                ev_gap, ev_lead = np.where(hold, gap_c[:, 0], gap_go[:, 0]), np.where(hold, v_c[:, 0], v_go[:, 0])
+                ev_free = np.isinf(ev_gap)
+                ev_idm = replace(settings.ego_idm, headway=settings.evasive_headway, accel=settings.evasive_accel)
+                ev_cap = idm_speed_command(v[:, 0], evasive_v0, np.where(ev_free, v[:, 0], ev_lead),
+                                           np.where(ev_free, free_gap[:, 0], ev_gap), ev_idm, dt)
+                current_cap = np.where(evasive, np.maximum(current_cap, ev_cap), current_cap)
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
             target_offset[:, 0] = np.where(hold, d[:, 0] - lane_target[:, 0], 0.0)
@@ -284,7 +295,12 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # into the ramp's lane in the simulation.
         target_d = lane_target + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
-        moved = bicycle_step(state, speed_cmd, steer, limits, dt)
+        step_limits = limits
+        if np.any(evasive):  # the evasive speed-up may use evasive_accel for this step (§3.6)
+            max_accel = np.broadcast_to(limits.max_accel, (G, n)).copy()
+            max_accel[:, 0] = np.where(evasive, np.maximum(settings.evasive_accel, max_accel[:, 0]), max_accel[:, 0])
+            step_limits = replace(limits, max_accel=max_accel)
+        moved = bicycle_step(state, speed_cmd, steer, step_limits, dt)
         cells = frame.locate(moved.x)
         slope_reached = frame.slope(tracked, cells)
         state = replace(moved, heading=moved.heading + slope_reached - lane_slope)
@@ -390,8 +406,9 @@ class GapCars:
 
 def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, length: np.ndarray,
                          width: np.ndarray, gap: GapCars, idm: IdmParams, v0: np.ndarray, st: SimSettings,
-                         rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The ego's speed command in a lane-change layer (§3.5) and whether the RSS barrier holds it back;
+                         rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ego's speed command in a lane-change layer (§3.5), whether the RSS barrier holds it back, and the
+    desired speed of its evasive speed-up into the gap (§3.6: the gap-rear car is RSS-unsafe; inf where not);
     ``target``: the ego's target chain per rollout; ``gap``: the cars around the gap it aims at.
 
     The barrier is RSS's cut-in rule: the ego may not make a gap car laterally unsafe while that pair is
@@ -432,6 +449,8 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     d_min_front = formulas.lon_safe_distance_same_dir(v_e, v_f, rss_ego, gap.front)
     too_slow = has_r & ~formulas.is_safe_distance(gap_to_rear, d_min_rear)
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
+    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, gap.rear)
+    evasive_v0 = np.where(too_slow, np.maximum(v0[:, 0], v_low + st.evasive_extra_speed), np.inf)
     rear_unsafe = has_r & ~formulas.is_safe_distance(np.minimum(gap_to_rear, gap_to_rear + (v_e - v_r) * h),
                                                      d_min_rear)
     front_unsafe = has_f & ~formulas.is_safe_distance(np.minimum(gap_to_front, gap_to_front + (v_f - v_e) * h),
@@ -443,7 +462,7 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
                               gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
-    return cmd, barrier
+    return cmd, barrier, evasive_v0
 
 
 def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, rss_ego: Any,
