@@ -297,9 +297,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         step_limits = limits
         if np.any(evasive):  # the evasive speed-up may use evasive_accel for this step (§3.6)
-            max_accel = np.broadcast_to(limits.max_accel, (G, n)).copy()
-            max_accel[:, 0] = np.where(evasive, np.maximum(settings.evasive_accel, max_accel[:, 0]), max_accel[:, 0])
-            step_limits = replace(limits, max_accel=max_accel)
+            step_limits = replace(limits, max_accel=np.where((cols == 0) & evasive[:, None], np.maximum(
+                settings.evasive_accel, limits.max_accel), limits.max_accel))
         moved = bicycle_step(state, speed_cmd, steer, step_limits, dt)
         cells = frame.locate(moved.x)
         slope_reached = frame.slope(tracked, cells)
