@@ -233,13 +233,15 @@ def test_leader_search_matches_the_pairwise_definition():
 
 
 def _first_lateral_unsafe(sim, agent, p):
-    """Sample index at which the ego first becomes laterally RSS-unsafe to ``agent`` (None: never)."""
-    d_e, d_a = sim.d[0, :, 0], sim.d[0, :, agent]
-    v_lat = sim.speed[0, :, 0] * np.sin(sim.heading[0, :, 0])
+    """Sample index at which the ego (4.5 x 1.8 m, its box rotated by its heading) first becomes laterally
+    RSS-unsafe to ``agent`` (1.8 m wide, straight in its lane) (None: never)."""
+    d_e, d_a, heading = sim.d[0, :, 0], sim.d[0, :, agent], sim.heading[0, :, 0]
+    v_lat = sim.speed[0, :, 0] * np.sin(heading)
     towards = np.where(d_e >= d_a, -v_lat, v_lat)
     lat_min = formulas.combine_lateral(formulas.lateral_reach(towards, p), formulas.lateral_reach(0.0, p),
                                        p.lat_fluctuation_margin, p.lat_fluctuation_margin)
-    unsafe = ~formulas.is_safe_distance(np.abs(d_e - d_a) - 1.8, lat_min)
+    ego_across = 4.5 * np.abs(np.sin(heading)) + 1.8 * np.cos(heading)
+    unsafe = ~formulas.is_safe_distance(np.abs(d_e - d_a) - 0.5 * (ego_across + 1.8), lat_min)
     return int(np.argmax(unsafe)) if unsafe.any() else None
 
 

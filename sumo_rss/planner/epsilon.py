@@ -120,8 +120,7 @@ class EpsilonPlanner:
         ego = snapshot.index_of(ego_id)
         if self.belief is not None:
             self.belief.observe(snapshot)
-        frame = self.frame_for(snapshot, ego)
-        lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
+        lane, frame = self.planning_lane(snapshot, ego)
         now = snapshot.time
         self.manager.update_context(now, lane)
         all_params = self.params.arrays(snapshot)
@@ -190,16 +189,33 @@ class EpsilonPlanner:
 
     # -----------------------------------------------------------------------------------------------------
     def frame_for(self, snapshot: WorldSnapshot, ego: int) -> RoadFrame:
-        """The planning frame along the ego's remaining route (cached per lane and route)."""
+        """The planning frame along the ego's remaining route, around its :meth:`planning_lane`."""
+        return self.planning_lane(snapshot, ego)[1]
+
+    def planning_lane(self, snapshot: WorldSnapshot, ego: int) -> tuple[int, RoadFrame]:
+        """The ego's lane for planning and its frame: the lane nearest to the ego's centre (epsilon.md §2.5 step
+        4), i.e. SUMO's lane or its neighbour on the edge. SUMO puts a vehicle on the lane under its front bumper,
+        so half-way through a lane change its centre may still be in the lane it leaves."""
         lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
         route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
-        key = (lane, tuple(self.network.edge_indices(route).tolist()))
-        frame = self._frames.get(key)
+        edges = tuple(self.network.edge_indices(route).tolist())
+        frame = self._frame(lane, edges)
+        s, d, _ = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
+                                         0.5 * float(snapshot.length[ego]))
+        side = {LEFT: self.network.lane_left, RIGHT: self.network.lane_right}.get(int(frame.nearest_chain(s, d)[0]))
+        if side is not None and side[lane] >= 0:
+            lane = int(side[lane])
+            frame = self._frame(lane, edges)
+        return lane, frame
+
+    def _frame(self, lane: int, edges: tuple[int, ...]) -> RoadFrame:
+        """The frame around ``lane`` along the route ``edges`` (cached)."""
+        frame = self._frames.get((lane, edges))
         if frame is None:
             if len(self._frames) > 64:
                 self._frames.clear()
-            frame = RoadFrame.build(lane_chains(self.network, lane, np.array(key[1], dtype=int)))
-            self._frames[key] = frame
+            frame = RoadFrame.build(lane_chains(self.network, lane, np.array(edges, dtype=int)))
+            self._frames[(lane, edges)] = frame
         return frame
 
     @staticmethod

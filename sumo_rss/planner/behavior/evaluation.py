@@ -17,7 +17,7 @@ from ...angles import cos_sin
 from ...rss import formulas
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult, laterally_safe
+from .forward_sim import LEADER_RANGE, SimResult, extent_across, laterally_safe
 
 
 @dataclass(frozen=True)
@@ -71,9 +71,10 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     the frame (a ramp and the motorway) do not read as cars driving at each other."""
     s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
     ds = s[..., 1:] - s[..., :1]
-    v_lat = v * cos_sin(h - frame.slope(sim.chain, s))[1]
-    lat_unsafe = ~laterally_safe(d[..., :1], d[..., 1:], v_lat[..., :1], v_lat[..., 1:], width[0], width[1:],
-                                 rss_ego, rss_agents)
+    cos_rel, sin_rel = cos_sin(h - frame.slope(sim.chain, s))
+    v_lat, across = v * sin_rel, extent_across(length, width, cos_rel, sin_rel)
+    lat_unsafe = ~laterally_safe(d[..., :1], d[..., 1:], v_lat[..., :1], v_lat[..., 1:], across[..., :1],
+                                 across[..., 1:], rss_ego, rss_agents)
     front = ds >= 0.0
     # The ego is charged for every car ahead that it is laterally unsafe to (it is the rear car), and for a rear
     # car from the sample it cuts in: it makes the pair laterally unsafe while it is longitudinally unsafe (RSS's

@@ -232,7 +232,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.stack([tracked, now_chain])
         free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
-                                               (settings.agent_radius, settings.ego_radius))
+                                               (settings.agent_radius, settings.ego_radius),
+                                               _occupied_band(state.heading[:, 0], length, width, settings))
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
         if np.isfinite(ego_stop_s):
@@ -314,11 +315,14 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
-                  length: np.ndarray, radii: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                  length: np.ndarray, radii: tuple[float, float], ego_band: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
     further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
-    search radius (``radii`` = (agents', the ego's); the ego is column 0). For the agents, vehicles are sorted
-    along s once per rollout, so the search is O(n log n) instead of O(n²); the ego's leaders are found directly.
+    search radius (``radii`` = (agents', the ego's); the ego is column 0). To the agents the ego is in a lane's
+    band where |d - centre(s)| < ``ego_band`` [G] [m] (default: the agents' radius): a body that sticks out
+    into their lane is in their way. For the agents, vehicles are sorted along s once per rollout, so the search
+    is O(n log n) instead of O(n²); the ego's leaders are found directly.
     Returns the bumper gaps [m] (inf: none) and the leaders' speeds, [m, G, n]."""
     G, n = s.shape
     cols = np.arange(n)
@@ -329,7 +333,10 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     rank = rank.reshape(G, n)
     chains = centres.shape[0]
     offset = np.abs(d[None] - centres)  # [chains, G, n]
-    member = (offset.reshape(chains, -1) < radii[0])[:, sorted_flat].reshape(chains, G, n)
+    band = np.full((G, n), radii[0])
+    if ego_band is not None:
+        band[:, 0] = ego_band
+    member = (offset < band).reshape(chains, -1)[:, sorted_flat].reshape(chains, G, n)
     # The first member strictly after each sorted position (n: none).
     position = np.where(member, cols, n)
     following = np.full((chains, G, n), n)
@@ -349,6 +356,16 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     ds = s.ravel().take(flat_j) - s
     ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
     return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j)
+
+
+def _occupied_band(heading: np.ndarray, length: np.ndarray, width: np.ndarray, settings: SimSettings
+                   ) -> np.ndarray:
+    """[m] per rollout: how far from a lane's centre line the ego's centre may be and still be in the way of an
+    agent keeping to that centre line (its body reaches half the widest agent's width from it), at least the
+    agents' own band. A car stopped at an angle half-way into a lane blocks it."""
+    reach = 0.5 * (length[0] * np.abs(np.sin(heading)) + width[0] * np.abs(np.cos(heading)))
+    widest = float(width[1:].max()) if width.size > 1 else 0.0
+    return np.maximum(settings.agent_radius, reach + 0.5 * widest)
 
 
 def _flat_idm(idm: IdmParams, G: int, n: int) -> dict[str, np.ndarray]:
@@ -457,17 +474,25 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
     three = (rows[:, None], np.concatenate([np.zeros_like(f)[:, None], gap.index], axis=1))  # [G, 3]: ego, front, rear
     s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
-    v_lat = v3 * cos_sin(h3 - frame.slope(target[:, None], s3))[1]
-    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
-                              gap.params)  # [G, 2]: to the front and the rear car
+    cos3, sin3 = cos_sin(h3 - frame.slope(target[:, None], s3))
+    across = extent_across(length[three[1]], width[three[1]], cos3, sin3)
+    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v3[:, :1] * sin3[:, :1], v3[:, 1:] * sin3[:, 1:], across[:, :1],
+                              across[:, 1:], rss_ego, gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
     return cmd, barrier, evasive_v0
 
 
+def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
+    """[m] how much of the lane's width a car takes up at heading cos/sin ``rel`` to it: length·|sin| + width·|cos|.
+    The ego pulling out from standstill turns up to ~30°; its footprint, not its width, decides when it is in the
+    other's lane."""
+    return length * np.abs(sin_rel) + width * np.abs(cos_rel)
+
+
 def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, rss_ego: Any,
                    rss_other: Any) -> np.ndarray:
-    """Whether the ego (centre offset ``d_e`` [m], lateral speed ``u_e`` [m/s], + = left, width ``w_e``) and
-    another car (``d_o``, ``u_o``, ``w_o``) are laterally RSS-safe (rss.md §2; arrays broadcast)."""
+    """Whether the ego (centre offset ``d_e`` [m], lateral speed ``u_e`` [m/s], + = left, extent across the lane
+    ``w_e`` [m]) and another car (``d_o``, ``u_o``, ``w_o``) are laterally RSS-safe (rss.md §2; arrays broadcast)."""
     ego_left = d_e >= d_o
     lat_gap = np.abs(d_e - d_o) - 0.5 * (w_e + w_o)
     u_e, u_o = np.where(ego_left, -u_e, u_e), np.where(ego_left, u_o, -u_o)  # speeds towards the other

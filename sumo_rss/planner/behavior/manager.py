@@ -4,7 +4,9 @@ The planner itself proposes lane changes: when the cheapest policy is the same l
 ``consistency_frames`` cycles in a row, a context is created whose operation time lies at least
 ``min_operation_delay`` s ahead on the decision grid. Until then only keep sequences may be executed; from then
 on keep sequences or the context's direction (which the navigation cost rewards). A *mandatory* change (the
-ego's lane ends ahead) skips the speed window and the cool-down.
+ego's lane ends ahead) skips the speed window and the cool-down, and its context does not expire while the ego
+waits for a gap: dropping it would shut lane changes out for the next ``min_operation_delay`` s and more, which
+at the end of an acceleration lane is just when a gap may come.
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ class LaneChangeContext:
     trigger_time: float  # [s]
     operation_time: float  # [s] from when the change may be executed
     start_lanes: frozenset[int]  # the lanes of the chain the ego started on
+    mandatory: bool = False  # the ego's lane ends: the context stays until the change is done
 
 
 class Manager:
@@ -66,7 +69,7 @@ class Manager:
         if ego_lane not in ctx.start_lanes:
             self.context = None
             self.lane_changes_completed += 1
-        elif now > ctx.operation_time + self.settings.outdated_after:
+        elif not ctx.mandatory and now > ctx.operation_time + self.settings.outdated_after:
             self.context = None
 
     def navigation(self, now: float) -> Navigation:
@@ -109,7 +112,7 @@ class Manager:
             return
         earliest = now + max(operation, s.min_operation_delay)
         operation_time = math.ceil(earliest / self.layer_duration - 1e-9) * self.layer_duration
-        self.context = LaneChangeContext(winner.lateral, now, operation_time, start_lanes)
+        self.context = LaneChangeContext(winner.lateral, now, operation_time, start_lanes, forced)
         self.last_trigger = now
         self.lane_changes_started += 1
         self._proposals.clear()

@@ -1,0 +1,53 @@
+"""EUDM manager (epsilon.md §2.7): lane-change proposals, context timing and expiry."""
+from __future__ import annotations
+
+import pytest
+
+from sumo_rss.planner.behavior.dcp_tree import Lat, Lon, Policy
+from sumo_rss.planner.behavior.manager import Manager, ManagerSettings
+
+LEFT_NOW = Policy(Lon.MAINTAIN, (Lat.LEFT,) * 5, (1.0,) * 5)
+LANE, START_LANES = 3, frozenset({3})
+
+
+def _trigger(manager: Manager, mandatory: Lat | None, speed: float = 15.0) -> float:
+    """Propose the same left change every 0.1 s until a context exists; returns the time it was created."""
+    now = 10.0
+    while manager.context is None:
+        manager.propose(LEFT_NOW, now, speed, LANE, START_LANES, mandatory)
+        now = round(now + 0.1, 1)
+        assert now < 12.0, "no context after 2 s of consistent proposals"
+    return now - 0.1
+
+
+def test_a_context_needs_consistent_proposals_and_operates_on_the_grid_after_the_minimum_delay():
+    manager = Manager(ManagerSettings(), layer_duration=1.0)
+    created = _trigger(manager, None)
+    assert created == pytest.approx(10.3)  # the 4th consistent cycle
+    assert manager.context.operation_time == pytest.approx(13.0)  # >= 2 s later, on the 1 s grid
+    assert manager.lane_changes_started == 1
+
+
+@pytest.mark.parametrize("mandatory", [None, Lat.LEFT])
+def test_only_a_discretionary_context_expires_while_the_ego_is_still_in_its_lane(mandatory):
+    """A mandatory change (the lane ends) keeps its context while the ego waits for a gap: dropping it would shut
+    lane changes out for >= 2 s (new proposals, then the operation delay), just when a gap may come."""
+    settings = ManagerSettings()
+    manager = Manager(settings, layer_duration=1.0)
+    _trigger(manager, mandatory)
+    operation = manager.context.operation_time
+    manager.update_context(operation + settings.outdated_after + 0.1, LANE)
+    assert (manager.context is not None) == (mandatory is not None)
+    manager.update_context(operation + settings.outdated_after + 0.2, LANE + 1)  # it left its lanes: done
+    assert manager.context is None
+    assert manager.lane_changes_completed == (1 if mandatory is not None else 0)
+
+
+def test_a_discretionary_change_respects_the_speed_window_and_a_mandatory_one_does_not():
+    slow = Manager(ManagerSettings(), layer_duration=1.0)
+    for k in range(10):
+        slow.propose(LEFT_NOW, 10.0 + 0.1 * k, 1.0, LANE, START_LANES, None)
+    assert slow.context is None
+    forced = Manager(ManagerSettings(), layer_duration=1.0)
+    _trigger(forced, Lat.LEFT, speed=0.0)
+    assert forced.context.mandatory
