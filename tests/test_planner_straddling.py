@@ -81,10 +81,11 @@ def test_a_car_behind_stops_for_an_ego_sticking_into_its_lane(highway):
 
 
 def test_the_barrier_does_not_hold_an_ego_whose_footprint_is_already_in_the_target_lane(highway):
-    """Across the lane the turned ego takes up 4.7·sin + 1.8·cos = 3.62 m, not its 1.8 m width: it is already
-    laterally unsafe to the left lane's car closing in behind (lon-unsafe: 10 m where 15.8 m are needed), so the
-    cut-in rule no longer holds it half-way in that car's lane (it used to, by the centres' offset and widths,
-    and the ego stood there for the rest of the run). It moves on into the lane."""
+    """Across the lane the turned ego takes up 4.7·sin + 1.8·cos = 3.62 m, not its 1.8 m width: it is already in
+    the way of the left lane's car closing in behind (lon-unsafe: 10 m where 15.8 m are needed), which stops for
+    it, so the cut-in rule no longer holds it half-way in that car's lane (it used to: by the centres' offset and
+    widths the pair was laterally safe, and the ego stood there for the rest of the run). It moves on into the
+    lane."""
     _, frame = highway
     p = RssParams()
     vehicles = _stopped_ego_and_follower(frame, 10.0, 5.0)

@@ -231,9 +231,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.stack([tracked, now_chain])
+        ego_band = _occupied_band(state.heading[:, 0], length, width, settings)
         free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
-                                               (settings.agent_radius, settings.ego_radius),
-                                               _occupied_band(state.heading[:, 0], length, width, settings))
+                                               (settings.agent_radius, settings.ego_radius), ego_band)
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
         if np.isfinite(ego_stop_s):
@@ -274,6 +274,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         if np.any(changing):
             lc_cmd, barrier, evasive_v0 = _lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm,
                                                                v0, settings, rss_ego, dt)
+            # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
+            barrier &= np.abs(d[:, 0] - centres[tracked[:, 0], np.arange(G), 0]) >= ego_band
             hold = changing & barrier
             evasive = changing & np.isfinite(evasive_v0)
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
@@ -363,7 +365,7 @@ def _occupied_band(heading: np.ndarray, length: np.ndarray, width: np.ndarray, s
     """[m] per rollout: how far from a lane's centre line the ego's centre may be and still be in the way of an
     agent keeping to that centre line (its body reaches half the widest agent's width from it), at least the
     agents' own band. A car stopped at an angle half-way into a lane blocks it."""
-    reach = 0.5 * (length[0] * np.abs(np.sin(heading)) + width[0] * np.abs(np.cos(heading)))
+    reach = 0.5 * extent_across(length[0], width[0], np.cos(heading), np.sin(heading))
     widest = float(width[1:].max()) if width.size > 1 else 0.0
     return np.maximum(settings.agent_radius, reach + 0.5 * widest)
 
@@ -430,7 +432,8 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     The barrier is RSS's cut-in rule: the ego may not make a gap car laterally unsafe while that pair is
     longitudinally unsafe, now or ``commit_time`` s later at constant speeds (the crossing takes time). Once the
     ego is laterally unsafe to a gap car that was safe when it got there, the pair's duty is longitudinal (the rear
-    car keeps its distance), so the barrier no longer holds the ego half-way."""
+    car keeps its distance), so the barrier no longer holds the ego half-way. (The caller also releases an ego
+    already in the way of the target lane's cars, :func:`_occupied_band`.)"""
     s, v = state.x, state.speed
     rows = np.arange(s.shape[0])
     has_f, has_r = gap.present[:, 0], gap.present[:, 1]
@@ -474,10 +477,9 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
     three = (rows[:, None], np.concatenate([np.zeros_like(f)[:, None], gap.index], axis=1))  # [G, 3]: ego, front, rear
     s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
-    cos3, sin3 = cos_sin(h3 - frame.slope(target[:, None], s3))
-    across = extent_across(length[three[1]], width[three[1]], cos3, sin3)
-    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v3[:, :1] * sin3[:, :1], v3[:, 1:] * sin3[:, 1:], across[:, :1],
-                              across[:, 1:], rss_ego, gap.params)  # [G, 2]: to the front and the rear car
+    v_lat = v3 * cos_sin(h3 - frame.slope(target[:, None], s3))[1]
+    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
+                              gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
     return cmd, barrier, evasive_v0
 
