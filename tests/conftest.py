@@ -1,4 +1,5 @@
-"""Shared fixtures: paths of the shipped scenarios and a valid scenario to break one field at a time."""
+"""Shared fixtures: paths of the shipped scenarios, a valid scenario to break one field at a time, and the
+planning frame on the straight part of the highway net."""
 from __future__ import annotations
 
 import copy
@@ -6,6 +7,10 @@ from pathlib import Path
 
 import pytest
 import tomli_w
+
+from sumo_rss.planner.lanes import lane_chains
+from sumo_rss.planner.road_frame import RoadFrame
+from sumo_rss.road.network import RoadNetwork
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIOS = REPO / "scenarios"
@@ -25,6 +30,15 @@ VALID_SCENARIO = {
             "depart_speed": 20.0, "desired_speed": 30.0},
     "rss": {"preset": "ad_rss"},
 }
+
+
+@pytest.fixture(scope="module")
+def highway() -> tuple[RoadNetwork, RoadFrame]:
+    """The highway net and the planning frame around its middle lane hw0_1 (lanes at y = -8.75 / -5.25 / -1.75,
+    3.5 m apart; the frame's s runs along +x from the start of hw0)."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
+    return net, frame
 
 
 @pytest.fixture

@@ -21,13 +21,6 @@ from sumo_rss.rss.params import RssParamArrays, RssParams
 from sumo_rss.sim.snapshot import WorldSnapshot
 
 
-@pytest.fixture(scope="module")
-def highway():
-    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
-    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
-    return net, frame
-
-
 def _vehicles(s, d, v, length=4.5, chain=None):
     n = len(s)
     z = np.zeros(n)

@@ -10,12 +10,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import NETWORKS
 from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, simulate
 from sumo_rss.planner.epsilon import EpsilonPlanner
-from sumo_rss.planner.lanes import CURRENT, LEFT, lane_chains
-from sumo_rss.planner.road_frame import RoadFrame
-from sumo_rss.road.network import RoadNetwork
+from sumo_rss.planner.lanes import CURRENT, LEFT
 from sumo_rss.rss import formulas
 from sumo_rss.rss.auditor import ParamResolver
 from sumo_rss.rss.params import RssParamArrays, RssParams
@@ -23,13 +20,6 @@ from sumo_rss.sim.snapshot import WorldSnapshot
 
 HEADING = 0.49  # [rad] the ego's heading against its lane, pulling out from standstill
 LENGTH, WIDTH = 4.7, 1.8
-
-
-@pytest.fixture(scope="module")
-def highway():
-    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
-    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
-    return net, frame
 
 
 def _ego_snapshot(centre_y: float, sumo_lane: str) -> WorldSnapshot:
@@ -57,7 +47,7 @@ def test_the_ego_plans_from_the_lane_nearest_its_centre_not_the_lane_under_its_f
     assert lane in frame.chains.lanes[frame.chains.chain_of[CURRENT]]
 
 
-def _stopped_ego_and_follower(frame, gap: float, follower_speed: float):
+def _stopped_ego_and_follower(gap: float, follower_speed: float):
     """The ego stopped at s = 200 with its centre 0.79 m left of its lane's centre, turned by HEADING: its
     front-left corner is 0.79 + 0.5·(4.7·sin + 1.8·cos) = 2.6 m left, 0.85 m into the left lane, whose car (1.8 m
     wide, at its centre 3.5 m left) would just touch it. That car comes up behind, ``gap`` m bumper to bumper."""
@@ -71,7 +61,7 @@ def test_a_car_behind_stops_for_an_ego_sticking_into_its_lane(highway):
     the lane's centre line) and stops behind it: the rollout is valid. It used to drive into the ego's nose."""
     _, frame = highway
     p = RssParams()
-    vehicles = _stopped_ego_and_follower(frame, 40.0, 15.0)
+    vehicles = _stopped_ego_and_follower(40.0, 15.0)
     rollouts = Rollouts(np.full((1, 5), CURRENT), np.zeros(1), np.ones(1), np.zeros(1, bool), 4.2,
                         np.array([[1, LEFT]]), np.array([0.0, 15.0]))
     sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))
@@ -88,7 +78,7 @@ def test_the_barrier_does_not_hold_an_ego_whose_footprint_is_already_in_the_targ
     lane."""
     _, frame = highway
     p = RssParams()
-    vehicles = _stopped_ego_and_follower(frame, 10.0, 5.0)
+    vehicles = _stopped_ego_and_follower(10.0, 5.0)
     assert not formulas.is_safe_distance(10.0, formulas.lon_safe_distance_same_dir(5.0, 0.0, p, p))
     rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
                         np.array([[1, LEFT]]), np.array([0.0, 5.0]))
@@ -103,7 +93,7 @@ def test_an_upright_ego_short_of_the_line_is_still_held(highway):
     body) is laterally safe to it, so the cut-in rule holds it back while the pair is lon-unsafe."""
     _, frame = highway
     p = RssParams()
-    vehicles = replace(_stopped_ego_and_follower(frame, 10.0, 5.0), heading=np.zeros(2))
+    vehicles = replace(_stopped_ego_and_follower(10.0, 5.0), heading=np.zeros(2))
     rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
                         np.array([[1, LEFT]]), np.array([0.0, 5.0]))
     sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from enum import Enum
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -137,10 +138,16 @@ class PairSituations:
                               area=column("area", "", object))
 
 
+def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
+    """[m] how much of a lane's width a box (``length`` x ``width``) takes up at a heading whose cos/sin against
+    the lane are ``cos_rel``/``sin_rel``: length·|sin| + width·|cos|. (Along the lane: swap length and width.)"""
+    return length * np.abs(sin_rel) + width * np.abs(cos_rel)
+
+
 def _half_extents(length: np.ndarray, width: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Half extents [m] along and across a lane of a box rotated by ``theta`` [rad] against it."""
-    c, s = np.abs(np.cos(theta)), np.abs(np.sin(theta))
-    return 0.5 * length * c + 0.5 * width * s, 0.5 * length * s + 0.5 * width * c
+    c, s = np.cos(theta), np.sin(theta)
+    return 0.5 * extent_across(width, length, c, s), 0.5 * extent_across(length, width, c, s)
 
 
 def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssParamArrays,

@@ -15,9 +15,10 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
+from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult, extent_across, laterally_safe
+from .forward_sim import LEADER_RANGE, SimResult, laterally_safe
 
 
 @dataclass(frozen=True)

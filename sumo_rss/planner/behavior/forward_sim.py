@@ -22,6 +22,7 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
+from ...rss.situations import extent_across
 from ..lanes import LEFT
 from ..road_frame import FrameCells, RoadFrame
 from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, clamp, idm_speed_command, \
@@ -191,6 +192,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
     length, width = vehicles.length, vehicles.width
+    widest_agent = float(width[1:].max()) if n > 1 else 0.0
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     layers_recorded: list[tuple[np.ndarray, list[tuple[np.ndarray, ...]]]] = []  # (prefix of each rollout, steps)
@@ -231,7 +233,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.stack([tracked, now_chain])
-        ego_band = _occupied_band(state.heading[:, 0], length, width, settings)
+        ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
         free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
                                                (settings.agent_radius, settings.ego_radius), ego_band)
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
@@ -360,14 +362,14 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j)
 
 
-def _occupied_band(heading: np.ndarray, length: np.ndarray, width: np.ndarray, settings: SimSettings
+def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agent: float, settings: SimSettings
                    ) -> np.ndarray:
-    """[m] per rollout: how far from a lane's centre line the ego's centre may be and still be in the way of an
-    agent keeping to that centre line (its body reaches half the widest agent's width from it), at least the
-    agents' own band. A car stopped at an angle half-way into a lane blocks it."""
-    reach = 0.5 * extent_across(length[0], width[0], np.cos(heading), np.sin(heading))
-    widest = float(width[1:].max()) if width.size > 1 else 0.0
-    return np.maximum(settings.agent_radius, reach + 0.5 * widest)
+    """[m] per rollout: how far from a lane's centre line the ego's centre (``heading`` against it, ``length`` x
+    ``width``) may be and still be in the way of an agent keeping to that centre line (its body, turned as it is,
+    reaches half the widest agent's width from it), at least the agents' own band. A car stopped at an angle
+    half-way into a lane blocks it."""
+    reach = 0.5 * extent_across(length, width, np.cos(heading), np.sin(heading))
+    return np.maximum(settings.agent_radius, reach + 0.5 * widest_agent)
 
 
 def _flat_idm(idm: IdmParams, G: int, n: int) -> dict[str, np.ndarray]:
@@ -482,13 +484,6 @@ def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleSta
                               gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
     return cmd, barrier, evasive_v0
-
-
-def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
-    """[m] how much of the lane's width a car takes up at heading cos/sin ``rel`` to it: length·|sin| + width·|cos|.
-    The ego pulling out from standstill turns up to ~30°; its footprint, not its width, decides when it is in the
-    other's lane."""
-    return length * np.abs(sin_rel) + width * np.abs(cos_rel)
 
 
 def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, rss_ego: Any,
