@@ -10,8 +10,8 @@ The 20-seed runs take ~20 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE
 scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) is asserted
 strictly. Lane changes and merging within 240 s are xfail: under ad_rss a change needs an RSS-safe gap of
 ~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's notes), and the ego then keeps
-its lane or waits at the end of the acceleration lane (measured 2026-11-21: 14 of 20 ramp runs merge by 240 s
-with SSC, 13 with the behaviour trajectory alone; no lane change completed in 20 highway runs). The suite always
+its lane or waits at the end of the acceleration lane (measured 2026-11-21 with SSC: 19 of 20 ramp runs merge by
+240 s; no lane change completed in 20 highway runs). The suite always
 runs a 2-seed smoke version: no ego collision, never responsible, the planner drives every step, the ego gets onto
 the acceleration lane and never past its end.
 """

@@ -94,3 +94,18 @@ def test_bicycle_turns_with_the_expected_radius():
         s = bicycle_step(s, 5.0, steer, VehicleLimits(), 0.1)
     assert s.heading[0] == pytest.approx(5.0 * 0.02 * 1.0, abs=1e-9)
     assert math.hypot(s.x[0], s.y[0] - 50.0) == pytest.approx(50.0, abs=1e-6)  # on the circle of radius 50 m
+
+
+def test_a_headway_distance_floor_raises_the_desired_gap():
+    # v = v_l = 25 m/s, net gap 50 m. With T = 1 s: s* = 2 + 25 = 27 m < 50 m, free-road regime below v0 = 30:
+    # a·(1 − (25/30)^4)·(1 − z^(2a/a_free)) with z = 0.54. A floor of 89.19 m (the ad_rss safe distance at these
+    # speeds) on v·T gives s* = 91.19 m, z = 1.8238, IIDM a·(1 − z²) = −2.3263, blended with the heuristic
+    # −b·v²/(v_l² + 2·b·s) = −1.67·625/(625 + 167) = −1.317866 into −2.2203 m/s².
+    assert acc_acceleration(25.0, 30.0, 25.0, 50.0, EGO) > 0.0
+    assert acc_acceleration(25.0, 30.0, 25.0, 50.0, EGO, min_distance=20.0) == acc_acceleration(25.0, 30.0, 25.0,
+                                                                                                50.0, EGO)
+    z = (2.0 + 89.19) / 50.0
+    a_iidm, a_cah = 1.0 - z * z, -1.67 * 625 / (625 + 2 * 1.67 * 50)
+    expected = 0.01 * a_iidm + 0.99 * (a_cah + 1.67 * math.tanh((a_iidm - a_cah) / 1.67))
+    assert acc_acceleration(25.0, 30.0, 25.0, 50.0, EGO, min_distance=89.19) == pytest.approx(expected, abs=1e-12)
+    assert expected == pytest.approx(-2.2203, abs=1e-3)

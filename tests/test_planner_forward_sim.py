@@ -79,12 +79,13 @@ def test_boxes_overlap_hand_cases():
 
 def test_follower_behind_a_stopped_car_stops_without_collision(highway):
     _, frame = highway
-    # The ego at 15 m/s, 60 m behind a stopped car in its lane (bumper gap 55.5 m); 5 s of keep-lane.
+    # The ego at 15 m/s, 60 m behind a stopped car in its lane (bumper gap 55.5 m); 12 s of keep-lane.
     vehicles = _vehicles([100.0, 160.0], [0.0, 0.0], [15.0, 0.0])
     p = RssParamArrays.stack([RssParams()] * 2)
-    sim = simulate(frame, vehicles, _keep(1, 2, layers=8, v0=20.0), (1.0,) * 8, SimSettings(), RssParams(), p)
+    sim = simulate(frame, vehicles, _keep(1, 2, layers=12, v0=20.0), (1.0,) * 12, SimSettings(), RssParams(), p)
     gap = sim.s[0, :, 1] - sim.s[0, :, 0] - 4.5
-    assert sim.valid[0] and gap.min() > 0.5
+    # It stops farther back than the RSS distance between two stopped cars, ½·3.5·1² + 3.5²/(2·4) = 3.28 m.
+    assert sim.valid[0] and gap.min() > 3.28
     assert sim.speed[0, -1, 0] < 0.5 and np.all(sim.speed[0, :, 1] == 0.0)
     # The ego's leader is the stopped car at every sample.
     np.testing.assert_allclose(sim.ego_lead_gap[0], gap)
@@ -345,3 +346,38 @@ def test_a_car_beside_a_bending_ramp_stays_in_its_lane():
     # ... and in the world it keeps driving along y = -5.25.
     _, y, _ = frame.to_world(s_a, d_a, sim.heading[0, :, 1])
     np.testing.assert_allclose(y, y0, atol=0.25)
+
+
+@pytest.mark.parametrize("rss_following", [True, False])
+def test_the_ego_follows_a_car_at_no_less_than_the_rss_distance(highway, rss_following):
+    """The ego at 25 m/s, 110 m (bumper gap 105.5 m) behind a car at 22 m/s, desired speed 30 m/s, 8 s of
+    keep-lane. Its IDM keeps at least the RSS safe distance to the car (ad_rss: 25 + 1.75 + 28.5²/8 − 22²/16 =
+    98.03 m at these speeds): it slows down and follows without ever being RSS-unsafe. With IDM's 1 s headway
+    alone it closes in and becomes RSS-unsafe."""
+    _, frame = highway
+    vehicles = _vehicles([100.0, 210.0], [0.0, 0.0], [25.0, 22.0])
+    p = RssParamArrays.stack([RssParams()] * 2)
+    rollouts = _keep(1, 2, layers=8, v0=30.0)
+    rollouts = replace(rollouts, agent_v0=np.array([0.0, 22.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 8, SimSettings(rss_following=rss_following), RssParams(), p)
+    gap = sim.s[0, :, 1] - sim.s[0, :, 0] - 4.5
+    d_min = formulas.lon_safe_distance_same_dir(sim.speed[0, :, 0], sim.speed[0, :, 1], RssParams(), RssParams())
+    assert float(d_min[0]) == pytest.approx(98.03125, abs=1e-9)
+    if rss_following:
+        assert np.all(gap > d_min)
+        assert gap[-1] - d_min[-1] < 15.0  # it follows at about the RSS distance, not far behind it
+    else:
+        assert np.any(gap < d_min)
+
+
+def test_a_stop_line_is_approached_with_the_idm_not_held_at_an_rss_distance(highway):
+    """The RSS distance applies to cars: a stop line 60 m ahead of the ego's front bumper (15 m/s) is a standing
+    obstacle the ego stops just before (IDM s0 = 2 m), not one it stays D_rss(15) = 59.5 m away from."""
+    _, frame = highway
+    vehicles = _vehicles([100.0, 400.0], [0.0, 0.0], [15.0, 25.0])
+    p = RssParamArrays.stack([RssParams()] * 2)
+    rollouts = replace(_keep(1, 2, layers=10, v0=20.0), agent_v0=np.array([0.0, 25.0]))
+    stop_s = 100.0 + 2.25 + 60.0
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 10, SimSettings(), RssParams(), p, ego_stop_s=stop_s)
+    front = sim.s[0, :, 0] + 2.25
+    assert front.max() <= stop_s and front[-1] > stop_s - 5.0 and sim.speed[0, -1, 0] < 1.0

@@ -69,7 +69,7 @@ class PlannerConfig:
         """The MPDM baseline: 3 lateral policies at constant speed command, one scenario, 4 s at 0.4 s."""
         return cls(mode="mpdm", desired_speed=desired_speed, layers=4, sim_step=0.4, scenarios_k=1,
                    manager=ManagerSettings(consistency_frames=2, min_operation_delay=0.0),
-                   motion=MotionSettings(enabled=False))
+                   motion=MotionSettings(enabled=False), sim=SimSettings(rss_following=False))
 
 
 @dataclass(frozen=True, eq=False)

@@ -53,14 +53,16 @@ class VehicleLimits:
     max_steer_rate: float = 0.39  # [rad/s]
 
 
-def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np.ndarray:
+def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, min_distance: Any = 0.0) -> np.ndarray:
     """ACC acceleration [m/s²] at speed ``v`` with desired speed ``v0``, a leader at ``v_lead`` (clamped ≥ 0) and
-    net bumper gap ``gap`` [m] (use a large gap and v_lead = v for a free road). Clipped to [−hard_brake, a]."""
+    net bumper gap ``gap`` [m] (use a large gap and v_lead = v for a free road). Clipped to [−hard_brake, a].
+    ``min_distance`` [m]: a floor on the headway distance v·T of the desired gap (the RSS safe distance)."""
     v, v0 = np.asarray(v, dtype=float), np.asarray(v0, dtype=float)
     v_lead = np.maximum(v_lead, 0.0)
     a, b, delta = p.accel, p.comfort_brake, p.exponent
     s_net = np.maximum(gap, 1e-3)
-    s_star = p.s0 + np.maximum(0.0, v * p.headway + v * (v - v_lead) / (2.0 * np.sqrt(a * b)))
+    headway = np.maximum(v * p.headway, min_distance)
+    s_star = p.s0 + np.maximum(0.0, headway + v * (v - v_lead) / (2.0 * np.sqrt(a * b)))
     z = s_star / s_net
     stop = v0 < V0_STOP
     v0_safe = np.where(stop, 1.0, v0)
@@ -79,10 +81,11 @@ def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams) -> np
     return clamp(np.where(a_iidm >= a_cah, a_iidm, blended), -p.hard_brake, a)
 
 
-def idm_speed_command(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, dt: float) -> np.ndarray:
+def idm_speed_command(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, dt: float,
+                      min_distance: Any = 0.0) -> np.ndarray:
     """Speed command [m/s] for the end of a step of ``dt`` s; braking never goes below standstill."""
     v = np.asarray(v, dtype=float)
-    accel = np.maximum(acc_acceleration(v, v0, v_lead, gap, p), -np.minimum(p.hard_brake, v / dt))
+    accel = np.maximum(acc_acceleration(v, v0, v_lead, gap, p, min_distance), -np.minimum(p.hard_brake, v / dt))
     return np.maximum(v + accel * dt, 0.0)
 
 

@@ -18,7 +18,8 @@ from ...rss import formulas
 from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult, laterally_safe
+from .forward_sim import LEADER_RANGE, SimResult
+from .lane_change import laterally_safe
 
 
 @dataclass(frozen=True)

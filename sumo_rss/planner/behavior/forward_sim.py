@@ -10,7 +10,7 @@ Per step and vehicle: pure pursuit on the tracked lane (its target lane; the ego
 a leader search on the tracked lane and on the lane the vehicle is in now, ACC/IIDM on the nearer leader (a lane
 that ends is a stopped leader at its end), the kinematic bicycle with its limits. The ego's lane-change layers
 use the gap-informed controller of §3.5 with the port's fix (the current-lane IDM still applies), the RSS
-evasive speed-up and an RSS virtual barrier (RSS's cut-in rule, :func:`_lane_change_command`). A rollout whose
+evasive speed-up and an RSS virtual barrier (RSS's cut-in rule, :func:`lane_change_command`). A rollout whose
 ego box (inflated) meets another vehicle's box is invalid from that step on.
 """
 from __future__ import annotations
@@ -20,13 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from ...angles import cos_sin
 from ...rss import formulas
 from ...rss.situations import extent_across
 from ..lanes import LEFT
 from ..road_frame import FrameCells, RoadFrame
-from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, clamp, idm_speed_command, \
-    lookahead, pure_pursuit_steer
+from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, idm_speed_command, lookahead, \
+    pure_pursuit_steer
+from .lane_change import GapCars, lane_change_command
 
 NO_LEADER_GAP = 100.0  # [m] a free road is a virtual leader 100 + 100·v ahead at the own speed
 LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
@@ -55,6 +55,7 @@ class SimSettings:
     inflation: float = 0.1  # [m] added to length and width in the strict collision check
     lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
     commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
+    rss_following: bool = True  # the ego's IDM headway distance is at least the RSS safe distance to a car ahead
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,6 +194,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
     length, width = vehicles.length, vehicles.width
     widest_agent = float(width[1:].max()) if n > 1 else 0.0
+    # The ego keeps the RSS distance to whichever car it follows, taken as the one that can brake hardest.
+    front_worst = rss_agents.take(np.array([1 + int(np.argmax(rss_agents.lon_brake_max[1:]))])) \
+        if settings.rss_following and n > 1 else None
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     layers_recorded: list[tuple[np.ndarray, list[tuple[np.ndarray, ...]]]] = []  # (prefix of each rollout, steps)
@@ -252,43 +256,55 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                  free_speeds[1, :, :1], 0.0)
         if np.isfinite(ego_stop_s):
             gap_go[:, 0], v_go[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_go[:, 0], v_go[:, 0])
-        # The leaders in one call: on the tracked lane; on the current lane where that is another lane (a car
-        # changing lanes; elsewhere the two are the same); and the ego's 'going' leader.
-        other = np.flatnonzero(tracked.ravel() != now_chain.ravel())
-        rows = np.concatenate([np.arange(G * n), other, ego_flat])
-        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel()[other], gap_go[:, 0]])
-        v_leads = np.concatenate([v_t.ravel(), v_c.ravel()[other], v_go[:, 0]])
-        v_rows = v.ravel()[rows]
-        free = np.isinf(gaps)
-        cmd = idm_speed_command(v_rows, v0.ravel()[rows], np.where(free, v_rows, v_leads),
-                                np.where(free, free_gap.ravel()[rows], gaps),
-                                IdmParams(**{name: values[rows] for name, values in idm_flat.items()}), dt)
-        cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:]
-        cmd_c = cmd_t.copy()
-        cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
-        speed_cmd = np.minimum(cmd_t, cmd_c)
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
         lane_target = frame.lane_ahead(np.take_along_axis(centres, tracked[None], axis=0)[0], lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
-        evasive = np.zeros(G, dtype=bool)
+        hold = evasive = np.zeros(G, dtype=bool)
         if np.any(changing):
-            lc_cmd, barrier, evasive_v0 = _lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm,
-                                                               v0, settings, rss_ego, dt)
+            lc_cmd, barrier, evasive_v0 = lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm,
+                                                              v0, settings, rss_ego, dt)
             # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
             barrier &= np.abs(d[:, 0] - centres[tracked[:, 0], np.arange(G), 0]) >= ego_band
             hold = changing & barrier
             evasive = changing & np.isfinite(evasive_v0)
+        ev = np.flatnonzero(evasive)
+        # The leaders in one IDM call: on the tracked lane; on the current lane where that is another lane (a car
+        # changing lanes; elsewhere the two are the same); the ego's 'going' leader; and, where the ego speeds up
+        # evasively, the leader in its lane (the waiting or the going one) with the evasive IDM.
+        other = np.flatnonzero(tracked.ravel() != now_chain.ravel())
+        rows = np.concatenate([np.arange(G * n), other, ego_flat, ev * n])
+        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel()[other], gap_go[:, 0],
+                               np.where(hold, gap_c[:, 0], gap_go[:, 0])[ev]])
+        v_leads = np.concatenate([v_t.ravel(), v_c.ravel()[other], v_go[:, 0],
+                                  np.where(hold, v_c[:, 0], v_go[:, 0])[ev]])
+        v_rows = v.ravel()[rows]
+        free = np.isinf(gaps)
+        desired = v0.ravel()[rows]
+        params = {name: values[rows] for name, values in idm_flat.items()}
+        if ev.size:
+            desired[-ev.size:] = evasive_v0[ev]
+            for name, value in (("s0", settings.ego_idm.s0), ("headway", settings.evasive_headway),
+                                ("accel", settings.evasive_accel)):
+                params[name][-ev.size:] = value
+        following = np.zeros(rows.size)
+        if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance
+            car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
+                                  gap_go[:, 0] == free_gaps[1, :, 0], np.zeros(ev.size, dtype=bool)])
+            behind_car = (rows % n == 0) & car & ~free
+            following[behind_car] = formulas.lon_safe_distance_same_dir(v_rows[behind_car], v_leads[behind_car],
+                                                                        rss_ego, front_worst)
+        cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
+                                np.where(free, free_gap.ravel()[rows], gaps), IdmParams(**params), dt, following)
+        cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:G * n + other.size + G]
+        cmd_c = cmd_t.copy()
+        cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
+        speed_cmd = np.minimum(cmd_t, cmd_c)
+        if np.any(changing):
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
-            if np.any(evasive):  # speeding up, the ego still reacts to the leader in its lane, with the evasive IDM
-                ev_gap, ev_lead = np.where(hold, gap_c[:, 0], gap_go[:, 0]), np.where(hold, v_c[:, 0], v_go[:, 0])
-                ev_free = np.isinf(ev_gap)
-                ev_idm = replace(settings.ego_idm, headway=settings.evasive_headway, accel=settings.evasive_accel)
-                ev_cap = idm_speed_command(v[:, 0], evasive_v0, np.where(ev_free, v[:, 0], ev_lead),
-                                           np.where(ev_free, free_gap[:, 0], ev_gap), ev_idm, dt)
-                current_cap = np.where(evasive, np.maximum(current_cap, ev_cap), current_cap)
+            current_cap[ev] = np.maximum(current_cap[ev], cmd[cmd.size - ev.size:])
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
             target_offset[:, 0] = np.where(hold, d[:, 0] - lane_target[:, 0], 0.0)
@@ -394,105 +410,3 @@ def _stopped_leader(stop_gap: np.ndarray, gap: np.ndarray, v_lead: np.ndarray) -
     """(gap, leader speed) with a standing obstacle ``stop_gap`` [m] ahead taking the leader's place where nearer."""
     closer = stop_gap < gap
     return np.where(closer, stop_gap, gap), np.where(closer, 0.0, v_lead)
-
-
-@dataclass(frozen=True, eq=False)
-class GapCars:
-    """Per rollout, the nearest agents ahead of and behind the ego on its target lane: ``index`` [G, 2] (front,
-    rear; 0 where ``present`` is False) and their RSS parameters (``params`` [G, 2]; ``front``, ``rear`` [G])."""
-
-    index: np.ndarray
-    present: np.ndarray
-    params: Any
-    front: Any
-    rear: Any
-
-    @classmethod
-    def find(cls, centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray, radius: float,
-             rss_agents: Any) -> GapCars:
-        """``centres``: [3, G, n] lane centres at every vehicle's position; ``target`` [G] the ego's target chain;
-        ``rss_agents`` the RSS parameters of every vehicle."""
-        on_target = np.abs(d - centres[target, np.arange(s.shape[0])]) < radius
-        on_target[:, 0] = False
-        ds = s - s[:, :1]
-        distance = np.stack([np.where(on_target & (ds >= 0.0), ds, np.inf),
-                             np.where(on_target & (ds < 0.0), -ds, np.inf)], axis=2)  # [G, n, 2]
-        index = np.argmin(distance, axis=1)
-        present = np.isfinite(np.take_along_axis(distance, index[:, None, :], axis=1)[:, 0])
-        index = np.where(present, index, 0)
-        params = rss_agents.take(index)
-        return cls(index, present, params, params.take(np.s_[:, 0]), params.take(np.s_[:, 1]))
-
-
-def _lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, length: np.ndarray,
-                         width: np.ndarray, gap: GapCars, idm: IdmParams, v0: np.ndarray, st: SimSettings,
-                         rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ego's speed command in a lane-change layer (§3.5), whether the RSS barrier holds it back, and the
-    desired speed of its evasive speed-up into the gap (§3.6: the gap-rear car is RSS-unsafe; inf where not);
-    ``target``: the ego's target chain per rollout; ``gap``: the cars around the gap it aims at.
-
-    The barrier is RSS's cut-in rule: the ego may not make a gap car laterally unsafe while that pair is
-    longitudinally unsafe, now or ``commit_time`` s later at constant speeds (the crossing takes time). Once the
-    ego is laterally unsafe to a gap car that was safe when it got there, the pair's duty is longitudinal (the rear
-    car keeps its distance), so the barrier no longer holds the ego half-way. (The caller also releases an ego
-    already in the way of the target lane's cars, :func:`_occupied_band`.)"""
-    s, v = state.x, state.speed
-    rows = np.arange(s.shape[0])
-    has_f, has_r = gap.present[:, 0], gap.present[:, 1]
-    f, r = gap.index[:, 0], gap.index[:, 1]
-    s_e, v_e = s[:, 0], v[:, 0]
-    s0, T = idm.s0[:, 0], idm.headway[:, 0]
-    half = 0.5 * length[0]
-    s_ref_f = s[rows, f] - 0.5 * length[f]  # gap front's rear bumper
-    s_ref_r = s[rows, r] + 0.5 * length[r]  # gap rear's front bumper
-    v_f, v_r = v[rows, f], v[rows, r]
-    s_thr_f = s_ref_f - s0 - T * v_e - half
-    s_thr_r = s_ref_r + s0 + T * v_r + half
-    v_ref_f = np.maximum(0.0, v_f + clamp(st.gap_speed_gain * (s_thr_f - s_e), -3.0, 5.0))
-    v_ref_r = np.maximum(0.0, v_r + clamp(st.gap_speed_gain * (s_thr_r - s_e), -3.0, 5.0))
-    v_pref = v_e + st.preferred_blend * (v0[:, 0] - v_e)
-    mid = 0.5 * (s_ref_f + s_ref_r)
-    both_s = clamp(s_e, np.minimum(mid, s_thr_r), np.maximum(mid, s_thr_f))
-    both_v = np.minimum(np.maximum(v_ref_r, v_pref), v_ref_f)
-    squeezed = s_ref_f < s_ref_r
-    s_des = np.where(has_f & has_r, np.where(squeezed, s_e, both_s),
-                     np.where(has_f, np.minimum(s_e, s_thr_f), np.where(has_r, np.maximum(s_e, s_thr_r), s_e)))
-    v_des = np.where(has_f & has_r, np.where(squeezed, v_e, both_v),
-                     np.where(has_f, np.minimum(v_pref, v_ref_f), np.where(has_r, np.maximum(v_ref_r, v_pref), v_e)))
-    a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
-    cmd = np.maximum(v_e + a_track * dt, 0.0)
-    # RSS towards the gap cars (bumper gaps): the ego behind the front car and ahead of the rear car. At constant
-    # speeds the safe distances stay the same for commit_time; only the gaps change.
-    gap_to_rear = s_e - half - s_ref_r
-    gap_to_front = s_ref_f - s_e - half
-    h = st.commit_time
-    d_min_rear = formulas.lon_safe_distance_same_dir(v_r, v_e, gap.rear, rss_ego)
-    d_min_front = formulas.lon_safe_distance_same_dir(v_e, v_f, rss_ego, gap.front)
-    too_slow = has_r & ~formulas.is_safe_distance(gap_to_rear, d_min_rear)
-    cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, gap.rear)
-    evasive_v0 = np.where(too_slow, np.maximum(v0[:, 0], v_low + st.evasive_extra_speed), np.inf)
-    rear_unsafe = has_r & ~formulas.is_safe_distance(np.minimum(gap_to_rear, gap_to_rear + (v_e - v_r) * h),
-                                                     d_min_rear)
-    front_unsafe = has_f & ~formulas.is_safe_distance(np.minimum(gap_to_front, gap_to_front + (v_f - v_e) * h),
-                                                      d_min_front)
-    # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
-    three = (rows[:, None], np.concatenate([np.zeros_like(f)[:, None], gap.index], axis=1))  # [G, 3]: ego, front, rear
-    s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
-    v_lat = v3 * cos_sin(h3 - frame.slope(target[:, None], s3))[1]
-    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
-                              gap.params)  # [G, 2]: to the front and the rear car
-    barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
-    return cmd, barrier, evasive_v0
-
-
-def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, rss_ego: Any,
-                   rss_other: Any) -> np.ndarray:
-    """Whether the ego (centre offset ``d_e`` [m], lateral speed ``u_e`` [m/s], + = left, extent across the lane
-    ``w_e`` [m]) and another car (``d_o``, ``u_o``, ``w_o``) are laterally RSS-safe (rss.md §2; arrays broadcast)."""
-    ego_left = d_e >= d_o
-    lat_gap = np.abs(d_e - d_o) - 0.5 * (w_e + w_o)
-    u_e, u_o = np.where(ego_left, -u_e, u_e), np.where(ego_left, u_o, -u_o)  # speeds towards the other
-    lat_min = formulas.combine_lateral(formulas.lateral_reach(u_e, rss_ego), formulas.lateral_reach(u_o, rss_other),
-                                       rss_ego.lat_fluctuation_margin, rss_other.lat_fluctuation_margin)
-    return formulas.is_safe_distance(lat_gap, lat_min)
