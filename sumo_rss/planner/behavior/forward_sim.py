@@ -191,6 +191,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     cols = np.arange(n)
     agent_idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
     limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
+    evasive_max_accel = np.where(cols == 0, np.maximum(settings.evasive_accel, limits.max_accel), limits.max_accel)
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
     length, width = vehicles.length, vehicles.width
     widest_agent = float(width[1:].max()) if n > 1 else 0.0
@@ -317,9 +318,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         target_d = lane_target + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
         step_limits = limits
-        if np.any(evasive):  # the evasive speed-up may use evasive_accel for this step (§3.6)
-            step_limits = replace(limits, max_accel=np.where((cols == 0) & evasive[:, None], np.maximum(
-                settings.evasive_accel, limits.max_accel), limits.max_accel))
+        if ev.size:  # the evasive speed-up may use evasive_accel for this step (§3.6)
+            step_limits = replace(limits, max_accel=np.where(evasive[:, None], evasive_max_accel, limits.max_accel))
         moved = bicycle_step(state, speed_cmd, steer, step_limits, dt)
         cells = frame.locate(moved.x)
         slope_reached = frame.slope(tracked, cells)
