@@ -115,9 +115,10 @@ class BicycleState:
     curvature: np.ndarray  # [1/m] tan(steer) / wheelbase
 
 
-def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: VehicleLimits,
-                 dt: float) -> BicycleState:
-    """Advance by ``dt`` s towards the commanded speed and steering, within the limits (epsilon.md §3.2)."""
+def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: VehicleLimits, dt: float,
+                 max_accel: Any = None) -> BicycleState:
+    """Advance by ``dt`` s towards the commanded speed and steering, within the limits (epsilon.md §3.2);
+    ``max_accel`` [m/s²] replaces ``limits.max_accel`` for this step where given."""
     L = limits.wheelbase
     v, curvature = state.speed, state.curvature
     steer = np.arctan(curvature * L)
@@ -125,7 +126,7 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     steer_cmd = clamp(steer_cmd, -limits.max_steer, limits.max_steer)
     # Longitudinal shaping: jerk, then acceleration limits.
     jerk = clamp(((v_cmd - v) / dt - state.accel) / dt, -limits.brake_jerk, limits.accel_jerk)
-    accel = clamp(state.accel + jerk * dt, -limits.hard_brake, limits.max_accel)
+    accel = clamp(state.accel + jerk * dt, -limits.hard_brake, limits.max_accel if max_accel is None else max_accel)
     v_new = np.maximum(v + accel * dt, 0.0)
     # Lateral shaping: lateral jerk and acceleration limits, then the steer rate (both angles lie in ±π/2, so
     # their difference needs no wrapping).
@@ -142,7 +143,7 @@ def bicycle_step(state: BicycleState, speed_cmd: Any, steer_cmd: Any, limits: Ve
     v_mid = 0.5 * (v + v_new)
     curvature_new = np.tan(steer_new) / L
     w0, w_mid, w_end = v * curvature, v_mid * np.tan(0.5 * (steer + steer_new)) / L, v_new * curvature_new
-    cos, sin = cos_sin(np.stack([th, th + dt / 2 * w0, th + dt / 2 * w_mid, th + dt * w_mid]))  # RK4 stages' θ
+    cos, sin = cos_sin(np.array([th, th + dt / 2 * w0, th + dt / 2 * w_mid, th + dt * w_mid]))  # RK4 stages' θ
     x = x + dt / 6 * (v * cos[0] + 2 * v_mid * (cos[1] + cos[2]) + v_new * cos[3])
     y = y + dt / 6 * (v * sin[0] + 2 * v_mid * (sin[1] + sin[2]) + v_new * sin[3])
     th = th + dt / 6 * (w0 + 4 * w_mid + w_end)

@@ -195,12 +195,18 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     gain, l_min, l_max = (np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit))
     length, width = vehicles.length, vehicles.width
     widest_agent = float(width[1:].max()) if n > 1 else 0.0
+    box_size = ((length[0] + settings.inflation, width[0] + settings.inflation),  # the collision check's boxes
+                (length[1:] + settings.inflation, width[1:] + settings.inflation))
     # The ego keeps the RSS distance to whichever car it follows, taken as the one that can brake hardest.
     front_worst = rss_agents.take(np.array([1 + int(np.argmax(rss_agents.lon_brake_max[1:]))])) \
         if settings.rss_following and n > 1 else None
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
-    layers_recorded: list[tuple[np.ndarray, list[tuple[np.ndarray, ...]]]] = []  # (prefix of each rollout, steps)
+    # Per layer: the prefix of every rollout, and the samples of its prefixes: [samples, 5, G, n] (s, d, heading,
+    # speed, chain) and [samples, 4, G] of the ego (acceleration, curvature, leader gap, leader speed).
+    layers_recorded: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    first_sample = np.concatenate([[0], layer_end[:-1]])
+    samples = np.diff(np.append(first_sample, n_steps + 1))
     valid = np.ones(1, dtype=bool)
     barrier_steps = np.zeros(1, dtype=int)
     layer = -1
@@ -224,20 +230,19 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             scale[:, 0] = rollouts.ego_spacing_scale[first]
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
             idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
-            layers_recorded.append((inverse, []))
+            layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)), np.empty((samples[layer], 4, G))))
         s, d, v = state.x, state.y, state.speed
         if branching:
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
-        hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], length[0] + settings.inflation,
-                            width[0] + settings.inflation, s[:, 1:], d[:, 1:], state.heading[:, 1:],
-                            length[1:] + settings.inflation, width[1:] + settings.inflation)
+        hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], *box_size[0], s[:, 1:], d[:, 1:],
+                            state.heading[:, 1:], *box_size[1])
         valid = valid & ~np.any(hit, axis=1)
         centres = frame.centres_at(cells)  # [3, G, n]
         now_chain = frame.chain_of_offsets(centres, s, d)
         if branching:
-            gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, rss_agents)
+            gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, length, width, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
-        looks = np.stack([tracked, now_chain])
+        looks = np.array([tracked, now_chain])
         ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
         free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
                                                (settings.agent_radius, settings.ego_radius), ego_band)
@@ -246,8 +251,12 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         if np.isfinite(ego_stop_s):
             gap_t[:, 0], v_t[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_t[:, 0], v_t[:, 0])
             gap_c[:, 0], v_c[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_c[:, 0], v_c[:, 0])
-        layers_recorded[-1][1].append((s, d, state.heading, v, state.accel[:, 0], state.curvature[:, 0], now_chain,
-                                       gap_t[:, 0], v_t[:, 0]))
+        _, vehicle_samples, ego_samples = layers_recorded[-1]
+        sample = k - first_sample[layer]
+        for q, value in enumerate((s, d, state.heading, v, now_chain)):
+            vehicle_samples[sample, q] = value
+        for q, value in enumerate((state.accel[:, 0], state.curvature[:, 0], gap_t[:, 0], v_t[:, 0])):
+            ego_samples[sample, q] = value
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
@@ -264,8 +273,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
         hold = evasive = np.zeros(G, dtype=bool)
         if np.any(changing):
-            lc_cmd, barrier, evasive_v0 = lane_change_command(frame, tracked[:, 0], state, length, width, gap, idm,
-                                                              v0, settings, rss_ego, dt)
+            lc_cmd, barrier, evasive_v0 = lane_change_command(frame, tracked[:, 0], state, cells, length, width, gap,
+                                                              idm, v0, settings, rss_ego, dt)
             # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
             barrier &= np.abs(d[:, 0] - centres[tracked[:, 0], np.arange(G), 0]) >= ego_band
             hold = changing & barrier
@@ -317,21 +326,22 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # into the ramp's lane in the simulation.
         target_d = lane_target + target_offset
         steer = pure_pursuit_steer(s, d, state.heading, s + ell, target_d, settings.ego_limits.wheelbase)
-        step_limits = limits
-        if ev.size:  # the evasive speed-up may use evasive_accel for this step (§3.6)
-            step_limits = replace(limits, max_accel=np.where(evasive[:, None], evasive_max_accel, limits.max_accel))
-        moved = bicycle_step(state, speed_cmd, steer, step_limits, dt)
+        # The evasive speed-up may use evasive_accel for this step (§3.6).
+        max_accel = np.where(evasive[:, None], evasive_max_accel, limits.max_accel) if ev.size else None
+        moved = bicycle_step(state, speed_cmd, steer, limits, dt, max_accel)
         cells = frame.locate(moved.x)
         slope_reached = frame.slope(tracked, cells)
-        state = replace(moved, heading=moved.heading + slope_reached - lane_slope)
+        state = BicycleState(moved.x, moved.y, moved.heading + slope_reached - lane_slope, moved.speed, moved.accel,
+                             moved.curvature)
         lane_slope = slope_reached
-    # Every rollout's samples: each layer's steps of its prefix (one gather per layer and quantity), assembled
-    # time-major and returned as [R, T+1, ...] views.
-    per_layer = [[np.stack(values)[:, inverse] for values in zip(*steps)] for inverse, steps in layers_recorded]
-    s, d, heading, speed, ego_accel, ego_curvature, chain, lead_gap, lead_speed = (
-        np.concatenate(parts).swapaxes(0, 1) for parts in zip(*per_layer))
+    # Every rollout's samples: each layer's samples of its prefix (one gather per layer), time-major, returned as
+    # [R, T+1, ...] views.
+    vehicle_samples = np.concatenate([samples[:, :, inverse] for inverse, samples, _ in layers_recorded])
+    ego_samples = np.concatenate([samples[:, :, inverse] for inverse, _, samples in layers_recorded])
+    s, d, heading, speed, chain = vehicle_samples.transpose(1, 2, 0, 3)
+    ego_accel, ego_curvature, lead_gap, lead_speed = ego_samples.transpose(1, 2, 0)
     return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid[inverse], lead_gap, lead_speed,
-                     barrier_steps[inverse], chain)
+                     barrier_steps[inverse], chain.astype(np.intp))
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
@@ -349,7 +359,7 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     row_base = (np.arange(G) * n)[:, None]
     sorted_flat = (row_base + np.argsort(s, axis=1, kind="stable")).ravel()  # flat [r, vehicle] by s per rollout
     rank = np.empty(G * n, dtype=np.intp)
-    rank[sorted_flat] = np.tile(cols, G)
+    rank[sorted_flat] = np.arange(G * n) % n
     rank = rank.reshape(G, n)
     chains = centres.shape[0]
     offset = np.abs(d[None] - centres)  # [chains, G, n]

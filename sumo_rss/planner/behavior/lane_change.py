@@ -12,7 +12,7 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
-from ..road_frame import RoadFrame
+from ..road_frame import FrameCells, RoadFrame
 from .controllers import BicycleState, IdmParams, clamp
 
 if TYPE_CHECKING:
@@ -21,21 +21,28 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True, eq=False)
 class GapCars:
-    """Per rollout, the nearest agents ahead of and behind the ego on its target lane: ``index`` [G, 2] (front,
-    rear; 0 where ``present`` is False) and their RSS parameters (``params`` [G, 2]; ``front``, ``rear`` [G])."""
+    """Per rollout, the nearest agents ahead of and behind the ego on its target lane, found once per layer:
+    ``index`` [G, 2] (front, rear; 0 where ``present`` is False); ``trio`` indexes [G, n] arrays as [G, 3]
+    (ego, front, rear); ``half_length`` and ``width`` [G, 2] of the two cars [m]; ``params`` their RSS parameters
+    [G, 2]; ``rear_params`` / ``front_params`` [2, G] those of the rear and the front car of the two longitudinal
+    pairs (the rear gap car behind the ego, the ego behind the front gap car)."""
 
     index: np.ndarray
     present: np.ndarray
+    trio: tuple[np.ndarray, np.ndarray]
+    half_length: np.ndarray
+    width: np.ndarray
     params: Any
-    front: Any
-    rear: Any
+    rear_params: Any
+    front_params: Any
 
     @classmethod
     def find(cls, centres: np.ndarray, s: np.ndarray, d: np.ndarray, target: np.ndarray, radius: float,
-             rss_agents: Any) -> GapCars:
+             length: np.ndarray, width: np.ndarray, rss_vehicles: Any) -> GapCars:
         """``centres``: [3, G, n] lane centres at every vehicle's position; ``target`` [G] the ego's target chain;
-        ``rss_agents`` the RSS parameters of every vehicle."""
-        on_target = np.abs(d - centres[target, np.arange(s.shape[0])]) < radius
+        ``length``, ``width`` [n] [m] and ``rss_vehicles`` the RSS parameters of every vehicle (the ego first)."""
+        rows = np.arange(s.shape[0])
+        on_target = np.abs(d - centres[target, rows]) < radius
         on_target[:, 0] = False
         ds = s - s[:, :1]
         distance = np.stack([np.where(on_target & (ds >= 0.0), ds, np.inf),
@@ -43,13 +50,19 @@ class GapCars:
         index = np.argmin(distance, axis=1)
         present = np.isfinite(np.take_along_axis(distance, index[:, None, :], axis=1)[:, 0])
         index = np.where(present, index, 0)
-        params = rss_agents.take(index)
-        return cls(index, present, params, params.take(np.s_[:, 0]), params.take(np.s_[:, 1]))
+        vehicles = np.concatenate([np.zeros((rows.size, 1), dtype=index.dtype), index], axis=1)  # ego, front, rear
+        return cls(index, present, (rows[:, None], vehicles), 0.5 * length[index], width[index],
+                   rss_vehicles.take(index), rss_vehicles.take(vehicles[:, _REAR_CARS].T),
+                   rss_vehicles.take(vehicles[:, _FRONT_CARS].T))
 
 
-def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, length: np.ndarray,
-                         width: np.ndarray, gap: GapCars, idm: IdmParams, v0: np.ndarray, st: SimSettings,
-                         rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+# Columns of a trio (ego, front, rear) that are the rear / the front car of the two longitudinal pairs.
+_REAR_CARS, _FRONT_CARS = (2, 0), (0, 1)
+
+
+def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, cells: FrameCells,
+                        length: np.ndarray, width: np.ndarray, gap: GapCars, idm: IdmParams, v0: np.ndarray,
+                        st: SimSettings, rss_ego: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The ego's speed command in a lane-change layer (§3.5), whether the RSS barrier holds it back, and the
     desired speed of its evasive speed-up into the gap (§3.6: the gap-rear car is RSS-unsafe; inf where not);
     ``target``: the ego's target chain per rollout; ``gap``: the cars around the gap it aims at.
@@ -60,15 +73,14 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
     car keeps its distance), so the barrier no longer holds the ego half-way. (The caller also releases an ego
     already in the way of the target lane's cars: the footprint band the agents see it by.)"""
     s, v = state.x, state.speed
-    rows = np.arange(s.shape[0])
     has_f, has_r = gap.present[:, 0], gap.present[:, 1]
-    f, r = gap.index[:, 0], gap.index[:, 1]
-    s_e, v_e = s[:, 0], v[:, 0]
+    s3, v3 = s[gap.trio], v[gap.trio]  # [G, 3]: ego, front, rear
+    s_e, v_e = s3[:, 0], v3[:, 0]
     s0, T = idm.s0[:, 0], idm.headway[:, 0]
     half = 0.5 * length[0]
-    s_ref_f = s[rows, f] - 0.5 * length[f]  # gap front's rear bumper
-    s_ref_r = s[rows, r] + 0.5 * length[r]  # gap rear's front bumper
-    v_f, v_r = v[rows, f], v[rows, r]
+    s_ref_f = s3[:, 1] - gap.half_length[:, 0]  # gap front's rear bumper
+    s_ref_r = s3[:, 2] + gap.half_length[:, 1]  # gap rear's front bumper
+    v_f, v_r = v3[:, 1], v3[:, 2]
     s_thr_f = s_ref_f - s0 - T * v_e - half
     s_thr_r = s_ref_r + s0 + T * v_r + half
     v_ref_f = np.maximum(0.0, v_f + clamp(st.gap_speed_gain * (s_thr_f - s_e), -3.0, 5.0))
@@ -84,26 +96,25 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
                      np.where(has_f, np.minimum(v_pref, v_ref_f), np.where(has_r, np.maximum(v_ref_r, v_pref), v_e)))
     a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
     cmd = np.maximum(v_e + a_track * dt, 0.0)
-    # RSS towards the gap cars (bumper gaps): the ego behind the front car and ahead of the rear car. At constant
-    # speeds the safe distances stay the same for commit_time; only the gaps change.
-    gap_to_rear = s_e - half - s_ref_r
-    gap_to_front = s_ref_f - s_e - half
-    h = st.commit_time
-    d_min_rear = formulas.lon_safe_distance_same_dir(v_r, v_e, gap.rear, rss_ego)
-    d_min_front = formulas.lon_safe_distance_same_dir(v_e, v_f, rss_ego, gap.front)
-    too_slow = has_r & ~formulas.is_safe_distance(gap_to_rear, d_min_rear)
+    # RSS in the two pairs [2, G] (bumper gaps): the rear gap car behind the ego, the ego behind the front gap car.
+    # At constant speeds the safe distances stay the same for commit_time; only the gaps change.
+    v_rear, v_front = v3[:, _REAR_CARS].T, v3[:, _FRONT_CARS].T
+    rear, front = gap.rear_params, gap.front_params
+    reach = formulas.lon_reach(v_rear, rear, rear.lon_brake_min)
+    d_min = formulas.combine_same_dir(reach, formulas.stopping_distance(v_front, front.lon_brake_max),
+                                      rear.min_lon_gap)
+    gaps = np.array([s_e - half - s_ref_r, s_ref_f - s_e - half])
+    too_slow = has_r & ~formulas.is_safe_distance(gaps[0], d_min[0])
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    v_low = formulas.min_safe_speed_ahead(gap_to_rear, v_r, rss_ego, gap.rear)
+    v_low = formulas.min_safe_speed_ahead_of_reach(gaps[0], reach[0], rear.min_lon_gap[0], rss_ego.lon_brake_max)
     evasive_v0 = np.where(too_slow, np.maximum(v0[:, 0], v_low + st.evasive_extra_speed), np.inf)
-    rear_unsafe = has_r & ~formulas.is_safe_distance(np.minimum(gap_to_rear, gap_to_rear + (v_e - v_r) * h),
-                                                     d_min_rear)
-    front_unsafe = has_f & ~formulas.is_safe_distance(np.minimum(gap_to_front, gap_to_front + (v_f - v_e) * h),
-                                                      d_min_front)
+    safe_later = formulas.is_safe_distance(np.minimum(gaps, gaps + (v_front - v_rear) * st.commit_time), d_min)
+    rear_unsafe, front_unsafe = has_r & ~safe_later[0], has_f & ~safe_later[1]
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
-    three = (rows[:, None], np.concatenate([np.zeros_like(f)[:, None], gap.index], axis=1))  # [G, 3]: ego, front, rear
-    s3, h3, v3, d3 = s[three], state.heading[three], v[three], state.y[three]
-    v_lat = v3 * cos_sin(h3 - frame.slope(target[:, None], s3))[1]
-    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], width[gap.index], rss_ego,
+    slope = frame.slope(target[:, None], FrameCells(cells.index[gap.trio], cells.fraction[gap.trio]))
+    v_lat = v3 * cos_sin(state.heading[gap.trio] - slope)[1]
+    d3 = state.y[gap.trio]
+    lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], gap.width, rss_ego,
                               gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
     return cmd, barrier, evasive_v0
