@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..heap import keep_freed_memory
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
@@ -100,6 +101,7 @@ class EpsilonPlanner:
     def __init__(self, network: RoadNetwork, params: ParamResolver, config: PlannerConfig = PlannerConfig()):
         if config.mode not in MODES:
             raise ValueError(f"unknown planner mode {config.mode!r}; expected one of {', '.join(MODES)}")
+        keep_freed_memory()  # the rollouts' large temporaries are reused instead of faulted in anew (heap.py)
         self.network = network
         self.params = params
         self.config = config
