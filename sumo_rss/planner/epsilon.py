@@ -109,6 +109,7 @@ class EpsilonPlanner:
         self.stats = PlannerStats()
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
+        self._last_lane: tuple[WorldSnapshot, int, tuple[int, RoadFrame]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
@@ -197,7 +198,11 @@ class EpsilonPlanner:
     def planning_lane(self, snapshot: WorldSnapshot, ego: int) -> tuple[int, RoadFrame]:
         """The ego's lane for planning and its frame: the lane nearest to the ego's centre (epsilon.md §2.5 step
         4), i.e. SUMO's lane or its neighbour on the edge. SUMO puts a vehicle on the lane under its front bumper,
-        so half-way through a lane change its centre may still be in the lane it leaves."""
+        so half-way through a lane change its centre may still be in the lane it leaves. The last answer is kept:
+        the guard asks again for the snapshot just planned on."""
+        last = self._last_lane
+        if last is not None and last[0] is snapshot and last[1] == ego:
+            return last[2]
         lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
         route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
         edges = tuple(self.network.edge_indices(route).tolist())
@@ -208,6 +213,7 @@ class EpsilonPlanner:
         if side is not None and side[lane] >= 0:
             lane = int(side[lane])
             frame = self._frame(lane, edges)
+        self._last_lane = (snapshot, ego, (lane, frame))
         return lane, frame
 
     def _frame(self, lane: int, edges: tuple[int, ...]) -> RoadFrame:

@@ -240,6 +240,8 @@ def _grow(plane: np.ndarray, box: list[int], direction: int, step: int, limit: i
     else:
         end = max(box[2] - step, limit)
         layers = plane[box[0]:box[1] + 1, end:box[2]].any(axis=0)[::-1]
-    free = int(np.argmax(layers)) if layers.any() else layers.size
+    free = int(layers.argmax()) if layers.size else 0  # the first blocked layer (argmax: 0 when none is)
+    if free < layers.size and not layers[free]:
+        free = layers.size
     box[(1, 0, 3, 2)[direction]] += free if direction in (0, 2) else -free
     return free == step and layers.size == step
