@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ScenarioError
+from .planner.behavior.evaluation import CostWeights
 from .road.topology import NetTopology, read_topology
 from .sumo_home import vtype_attribute_names
 from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
@@ -94,6 +95,7 @@ class PlannerOverrides:
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch
     motion_layer: bool = True  # SSC corridor + Bézier QP; False executes the behaviour trajectory (docs/motion.md)
     rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
+    costs: dict[str, float] = field(default_factory=dict)  # CostWeights fields that differ from epsilon.md §9
 
 
 @dataclass(frozen=True)
@@ -374,9 +376,23 @@ def _read_planner(t: TableReader) -> PlannerOverrides:
         intention_net=t.boolean("intention_net", d.intention_net),
         motion_layer=t.boolean("motion_layer", d.motion_layer),
         rss_preset=t.string("rss_preset", None, choices=PRESETS) if t.has("rss_preset") else None,
+        costs=_read_cost_weights(t.table("costs")) if t.has("costs") else {},
     )
     t.finish()
     return spec
+
+
+def _read_cost_weights(t: TableReader) -> dict[str, float]:
+    """EUDM's cost weights (``CostWeights`` fields): numbers >= 0; the discount in (0, 1]."""
+    defaults, out = CostWeights(), {}
+    for name in CostWeights.__dataclass_fields__:
+        given = t.has(name)
+        value = t.number(name, getattr(defaults, name), min=0.0, min_exclusive=name == "discount",
+                         max=1.0 if name == "discount" else None)
+        if given:
+            out[name] = value
+    t.finish()
+    return out
 
 
 def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec:

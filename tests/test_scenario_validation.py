@@ -58,6 +58,12 @@ BROKEN = [
      "before the end of the run"),
     ("boolean as number", lambda d: _set(d, "seed", True), "seed", "expected an integer"),
     ("outputs typo", lambda d: _set(d, "outputs", {"fcd_file": True}), "outputs.fcd_file", "unknown key"),
+    ("unknown planner cost", lambda d: _set(d, "ego.planner.costs", {"overtake_bonus": 1.0}),
+     "ego.planner.costs.overtake_bonus", "known keys here: blocked_by_leader"),
+    ("negative planner cost", lambda d: _set(d, "ego.planner.costs", {"lane_change_left": -0.1}),
+     "ego.planner.costs.lane_change_left", "expected a number >= 0"),
+    ("planner discount above 1", lambda d: _set(d, "ego.planner.costs", {"discount": 1.5}),
+     "ego.planner.costs.discount", "expected a number in (0, 1]"),
 ]
 
 
@@ -76,6 +82,18 @@ def test_the_valid_base_loads(tmp_path, valid_scenario):
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))
     assert spec.network == "highway" and spec.ego is not None and spec.ego.depart_lane == "1"
     assert spec.demand.flows[0].veh_per_hour == 1200.0
+
+
+def test_planner_cost_weights_reach_the_planner_and_survive_the_resolved_scenario(tmp_path, valid_scenario):
+    from sumo_rss.planner.driver import planner_config
+
+    _set(valid_scenario, "ego.controller", "epsilon")
+    _set(valid_scenario, "ego.planner.costs", {"leader_below_desired": 0.3, "discount": 0.8})
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    costs = planner_config(spec).costs
+    assert (costs.leader_below_desired, costs.discount, costs.lane_change_left) == (0.3, 0.8, 0.015)
+    again = load_scenario(write_scenario(tmp_path, spec.to_toml_data(), "resolved.toml"))
+    assert again.ego.planner == spec.ego.planner
 
 
 def test_missing_file_and_bad_toml(tmp_path):

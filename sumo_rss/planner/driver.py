@@ -11,6 +11,7 @@ from ..rss.auditor import Auditor, ParamResolver
 from ..scenario import ScenarioSpec
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory, TrajectoryState
+from .behavior.evaluation import CostWeights
 from .epsilon import EpsilonPlanner, PlannerConfig
 from .guard import ProperResponseGuard
 from .motion.frenet_plan import FrenetPlan
@@ -20,13 +21,13 @@ from .motion.ssc import MotionSettings
 def planner_config(spec: ScenarioSpec) -> PlannerConfig:
     """The planner configuration a scenario asks for (``ego.controller`` and ``[ego.planner]``)."""
     ego = spec.ego
-    if ego.controller == "mpdm":
-        return replace(PlannerConfig.mpdm(ego.desired_speed), output_step=spec.step_s)
     o = ego.planner
+    if ego.controller == "mpdm":
+        return replace(PlannerConfig.mpdm(ego.desired_speed), output_step=spec.step_s, replan_every=o.replan_every)
     return PlannerConfig(desired_speed=ego.desired_speed, layers=o.layers, layer_duration=o.layer_duration_s,
                          sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every,
                          output_step=spec.step_s, intention_net=o.intention_net,
-                         motion=MotionSettings(enabled=o.motion_layer))
+                         motion=MotionSettings(enabled=o.motion_layer), costs=replace(CostWeights(), **o.costs))
 
 
 class EgoDriver:
