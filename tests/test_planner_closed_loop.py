@@ -20,15 +20,16 @@ from __future__ import annotations
 import csv
 import json
 import os
+import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-from conftest import SCENARIOS
+from conftest import SCENARIOS, write_scenario
 from sumo_rss.batch.executors import LocalExecutor
 from sumo_rss.batch.orchestrator import run_batch
-from sumo_rss.batch.runner import run_directory
+from sumo_rss.batch.runner import run_directory, run_one
 from sumo_rss.batch.spec import Task
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.scenario import load_scenario
@@ -84,6 +85,34 @@ def test_smoke_epsilon_ego_drives_safely(tmp_path):
     runs = _epsilon_batch("merge_onramp", 80.0, tmp_path / "merge", SMOKE_SEEDS)
     _assert_safe(runs)
     _assert_on_acceleration_lane_not_past_its_end(runs)
+
+
+@pytest.mark.slow
+def test_smoke_epsilon_ego_overtakes_a_slow_truck(tmp_path):
+    """The ego overtakes slower traffic where RSS lets it: on the otherwise empty highway a lone truck drives at
+    18 m/s in the right lane, ~180 m ahead of the ego, which wants 30 m/s. The ego changes lanes and passes the
+    truck, never responsible, without settling in behind it first (before the leader cost read the gap beyond
+    the RSS distance, it followed the truck down to 18.6 m/s for ~15 s; now it changes at ~20.5 m/s)."""
+    truck = {"probability": 1.0, "vclass": "truck", "length": 12.0, "width": 2.5, "accel": 1.2, "decel": 4.0,
+             "emergency_decel": 7.0, "sigma": 0.0, "tau": 1.5, "max_speed": 18.0, "speed_dev": 0.0}
+    data = {"network": "highway", "duration_s": 90.0, "seed": 0, "demand": {
+        "vtypes": {"truck": truck}, "flows": [{"id": "truck", "route": ["hw0", "hw1", "hw2"], "veh_per_hour": 60.0,
+                                              "begin_s": 20.0, "end_s": 21.0, "depart_lane": 0, "depart_speed": "max"}]},
+        "ego": {"route": ["hw0", "hw1", "hw2"], "depart_s": 32.0, "depart_lane": 0, "depart_pos_m": 20.0,
+                "depart_speed": 18.0, "desired_speed": 30.0, "controller": "epsilon"},
+        "outputs": {"fcd": True}}
+    spec = load_scenario(write_scenario(tmp_path, data))
+    run_one(spec, tmp_path / "out")
+    folder = run_directory(tmp_path / "out", Task(spec, ""))
+    summary = _assert_safe([(Task(spec, ""), folder)])[0]
+    assert summary["planner"]["lane_changes_completed"] >= 1
+    # At the end the ego is ahead of the truck along the route.
+    last = ET.parse(folder / "fcd.xml").getroot().findall("timestep")[-1]
+    where = {v.get("id"): (spec.ego.route.index(v.get("lane").rsplit("_", 1)[0]), float(v.get("pos")))
+             for v in last.findall("vehicle")}
+    assert where["ego"] > where["truck.0"]
+    behind_at_its_speed = [r for r in _trace(folder) if float(r["time_s"]) > 40.0 and float(r["speed_ms"]) < 19.5]
+    assert len(behind_at_its_speed) * spec.step_s < 2.0
 
 
 @pytest.mark.slow

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.planner.behavior.evaluation import CostWeights, rss_penalty
+from sumo_rss.planner.behavior.evaluation import CostWeights, leader_gap_for_cost, rss_penalty
 from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
@@ -322,6 +322,20 @@ def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
     penalty = rss_penalty(closer, frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8),
                           CostWeights())
     assert np.all(penalty[0, :onset] == 0.0) and np.all(penalty[0, onset:] > 0.0)
+
+
+def test_the_leader_cost_reads_the_gap_less_the_rss_distance_in_excess_of_the_idm_headway():
+    """Under ad_rss an ego at 20 m/s behind an 18 m/s car that brakes at up to 10 m/s² needs
+    20 + 1.75 + 23.5²/8 - 18²/20 = 74.58125 m; IDM's headway is 1 s x 20 m/s, so a 75 m gap reads as
+    75 - 54.58125 m. The hardest-braking agent (10 of 6 and 10 m/s²) is the leader, as in the simulation."""
+    ego = RssParams()
+    agents = RssParamArrays.stack([replace(ego, lon_brake_max=6.0), replace(ego, lon_brake_max=10.0)])
+    gap = np.array([75.0, np.inf, 75.0])
+    v, v_lead = np.array([20.0, 20.0, 5.0]), np.array([18.0, 20.0, 20.0])
+    read = leader_gap_for_cost(gap, v, v_lead, ego, agents, 1.0)
+    # A slow ego behind a fast leader needs less than v·T (5 m): the gap is read as it is; so is no leader.
+    assert read == pytest.approx([75.0 - 54.58125, np.inf, 75.0], abs=1e-9)
+    assert np.array_equal(leader_gap_for_cost(gap, v, v_lead, ego, agents, None), gap)
 
 
 def test_a_car_beside_a_bending_ramp_stays_in_its_lane():

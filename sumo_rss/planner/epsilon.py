@@ -160,7 +160,8 @@ class EpsilonPlanner:
             ev = mpdm_costs(sim, everything, policy_of, weight_of, v_ref, vehicles, cfg.costs)
         else:
             ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, ego_params, agents_params,
-                          vehicles.length, vehicles.width, cfg.costs)
+                          vehicles.length, vehicles.width, cfg.costs,
+                          cfg.sim.ego_idm.headway if cfg.sim.rss_following else None)
         n_real = len(policies)
         cost = np.where(ev.valid, ev.cost, np.inf)
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None

@@ -18,7 +18,7 @@ from ...rss import formulas
 from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult
+from .forward_sim import LEADER_RANGE, SimResult, hardest_braking
 from .lane_change import laterally_safe
 
 
@@ -112,9 +112,12 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,
              v_ref: float, nav: Navigation, rss_ego: Any, rss_agents: Any, length: np.ndarray,
-             width: np.ndarray, w: CostWeights = CostWeights()) -> Evaluation:
+             width: np.ndarray, w: CostWeights = CostWeights(), rss_following_headway: float | None = None
+             ) -> Evaluation:
     """Costs of ``policies`` from the rollouts in ``sim``; rollout r plays policy ``policy_of[r]`` with scenario
-    weight ``weight_of[r]``. ``rss_agents`` covers the agents only (columns 1..n)."""
+    weight ``weight_of[r]``. ``rss_agents`` covers the agents only (columns 1..n). ``rss_following_headway`` [s]:
+    the ego IDM's T when the simulation kept the ego at least the RSS distance behind its leader
+    (``SimSettings.rss_following``; None: it did not)."""
     ends = sim.layer_end
     starts = np.concatenate([[0], ends[:-1]])
     durations = sim.t[ends] - sim.t[starts]
@@ -122,7 +125,8 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
     c_ego = np.where(v < v_ref, w.lack_speed * (v_ref - v),
                      np.where(v > v_ref + w.over_speed_tolerance, w.over_speed * (v - v_ref - w.over_speed_tolerance),
                               0.0))
-    gap, v_lead = sim.ego_lead_gap[:, ends], sim.ego_lead_speed[:, ends]
+    v_lead = sim.ego_lead_speed[:, ends]
+    gap = leader_gap_for_cost(sim.ego_lead_gap[:, ends], v, v_lead, rss_ego, rss_agents, rss_following_headway)
     residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
     blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
     c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
@@ -144,6 +148,22 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
     risky = np.zeros(P, dtype=bool)
     np.logical_or.at(risky, policy_of, per_sample.sum(axis=1) > 0.0)
     return Evaluation(layer_cost.sum(axis=1), valid, risky, layer_cost)
+
+
+def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_ego: Any, rss_agents: Any,
+                        rss_following_headway: float | None) -> np.ndarray:
+    """The ego's bumper gap [m] to its leader as the leader cost reads it (inf: no leader). With RSS following the
+    ego's IDM keeps the RSS safe distance where it exceeds the headway v·T, so the ego follows ~100 m back under
+    ad_rss where EPSILON's IDM follows 20-30 m back, and the cost's 120 m range would rate a leader that holds
+    the ego to its speed as hardly in the way (residual ratio at its 0.4 floor). The cost therefore reads the gap
+    as EPSILON's IDM would: less the RSS distance's excess over v·T (to the agent that brakes hardest, as the
+    simulation takes it)."""
+    if rss_following_headway is None or rss_agents.lon_brake_max.size == 0:
+        return gap
+    led = np.isfinite(gap)
+    rss_distance = formulas.lon_safe_distance_same_dir(v, np.where(led, v_lead, v), rss_ego,
+                                                       hardest_braking(rss_agents))
+    return gap - np.where(led, np.maximum(rss_distance - rss_following_headway * v, 0.0), 0.0)
 
 
 def _lane_costs(policies: list[Policy], policy_of: np.ndarray, v: np.ndarray, nav: Navigation,

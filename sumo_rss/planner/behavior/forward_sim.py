@@ -178,6 +178,12 @@ def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.nda
     return tree
 
 
+def hardest_braking(rss_agents: Any) -> Any:
+    """The RSS parameters ([1] arrays) of the agent that can brake hardest. With ``SimSettings.rss_following`` the
+    ego keeps the RSS distance to whichever car it follows, taken at this worst case."""
+    return rss_agents.take(np.array([int(np.argmax(rss_agents.lon_brake_max))]))
+
+
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
              ego_stop_s: float = np.inf) -> SimResult:
@@ -197,9 +203,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     widest_agent = float(width[1:].max()) if n > 1 else 0.0
     box_size = ((length[0] + settings.inflation, width[0] + settings.inflation),  # the collision check's boxes
                 (length[1:] + settings.inflation, width[1:] + settings.inflation))
-    # The ego keeps the RSS distance to whichever car it follows, taken as the one that can brake hardest.
-    front_worst = rss_agents.take(np.array([1 + int(np.argmax(rss_agents.lon_brake_max[1:]))])) \
-        if settings.rss_following and n > 1 else None
+    front_worst = hardest_braking(rss_agents.take(cols[1:])) if settings.rss_following and n > 1 else None
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     # Per layer: the prefix of every rollout, and the samples of its prefixes: [samples, 5, G, n] (s, d, heading,
