@@ -51,3 +51,14 @@ def test_a_discretionary_change_respects_the_speed_window_and_a_mandatory_one_do
     forced = Manager(ManagerSettings(), layer_duration=1.0)
     _trigger(forced, Lat.LEFT, speed=0.0)
     assert forced.context.mandatory
+
+
+@pytest.mark.parametrize("desired, speed, proposed", [(20.0, 24.0, True), (20.0, 25.0, False), (30.0, 30.0, True),
+                                                     (30.0, 35.9, True), (30.0, 36.1, False)])
+def test_the_speed_window_tops_out_at_1_2_times_the_desired_speed(desired, speed, proposed):
+    """The release's 4-24 m/s window, with its 20 m/s demo ego, scaled: an ego wanting 30 m/s may start a
+    discretionary change up to 36 m/s (with a fixed 24 m/s it could never overtake at highway speeds)."""
+    manager = Manager(ManagerSettings(), layer_duration=1.0, desired_speed=desired)
+    for k in range(10):
+        manager.propose(LEFT_NOW, 10.0 + 0.1 * k, speed, LANE, START_LANES, None)
+    assert (manager.context is not None) == proposed

@@ -105,7 +105,7 @@ class EpsilonPlanner:
         self.network = network
         self.params = params
         self.config = config
-        self.manager = Manager(config.manager, config.layer_duration)
+        self.manager = Manager(config.manager, config.layer_duration, config.desired_speed)
         self.stats = PlannerStats()
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
