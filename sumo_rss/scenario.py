@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ScenarioError
-from .planner.behavior.evaluation import CostWeights
+from .planner.behavior.cost_weights import CostWeights
 from .road.topology import NetTopology, read_topology
 from .sumo_home import vtype_attribute_names
 from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.planner.behavior.evaluation import CostWeights, leader_gap_for_cost, rss_penalty
+from sumo_rss.planner.behavior.cost_weights import CostWeights
+from sumo_rss.planner.behavior.evaluation import leader_gap_for_cost, rss_penalty
 from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig

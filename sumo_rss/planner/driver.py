@@ -11,7 +11,7 @@ from ..rss.auditor import Auditor, ParamResolver
 from ..scenario import ScenarioSpec
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory, TrajectoryState
-from .behavior.evaluation import CostWeights
+from .behavior.cost_weights import CostWeights
 from .epsilon import EpsilonPlanner, PlannerConfig
 from .guard import ProperResponseGuard
 from .motion.frenet_plan import FrenetPlan

@@ -26,7 +26,8 @@ from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory
 from .behavior.cfb import branch_scenarios, uncertain_agents
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
-from .behavior.evaluation import CostWeights, Navigation, evaluate
+from .behavior.cost_weights import CostWeights
+from .behavior.evaluation import Navigation, evaluate
 from .behavior.forward_sim import Rollouts, SimResult, SimSettings, Vehicles, simulate
 from .behavior.intention import rule_belief
 from .behavior.key_vehicles import KeyVehicles, key_vehicles

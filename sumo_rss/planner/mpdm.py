@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from .behavior.dcp_tree import Lat, Policy
-from .behavior.evaluation import CostWeights, Evaluation
+from .behavior.cost_weights import CostWeights
+from .behavior.evaluation import Evaluation
 from .behavior.forward_sim import LEADER_RANGE, SimResult, Vehicles, boxes_overlap
 
 LANE_CHANGE_COST = 0.5
