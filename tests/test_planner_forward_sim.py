@@ -211,7 +211,7 @@ def test_leader_search_matches_the_pairwise_definition():
     length = rng.choice([4.5, 6.0, 12.0], n)
     centres = np.broadcast_to(np.array([-3.5, 0.0, 3.5])[:, None, None], (3, G, n))
     looks = np.stack([rng.integers(0, 3, (G, n)), lane])
-    gaps, speeds = leaders_ahead(s, d, v, centres, looks, length, (1.25, 2.2))
+    gaps, speeds, leaders = leaders_ahead(s, d, v, centres, looks, length, (1.25, 2.2))
     radius = np.where(np.arange(n) == 0, 2.2, 1.25)  # column 0 is the ego
     for m in range(2):
         for r in range(G):
@@ -220,11 +220,12 @@ def test_leader_search_matches_the_pairwise_definition():
                 band = np.abs(d[r] - centres[looks[m, r, i], r]) < radius[i]
                 ok = (ds > 0.0) & (ds < 120.0 + length) & band
                 if not ok.any():
-                    assert np.isinf(gaps[m, r, i])
+                    assert np.isinf(gaps[m, r, i]) and leaders[m, r, i] == n
                     continue
                 gap = np.where(ok, ds - 0.5 * (length[i] + length), np.inf)
                 j = int(np.argmin(gap))
                 assert gaps[m, r, i] == pytest.approx(gap[j]) and speeds[m, r, i] == v[r, j]
+                assert leaders[m, r, i] == j
 
 
 def _first_lateral_unsafe(sim, agent, p):

@@ -35,7 +35,8 @@ def _ego_alone(speed: float) -> WorldSnapshot:
 
 def _owing_brake(t_b: float) -> OwedResponses:
     no = np.zeros(1, dtype=bool)
-    return OwedResponses(np.array([t_b]), np.ones(1, dtype=bool), no, no, no, no, np.zeros(1))
+    return OwedResponses(np.array([t_b]), np.ones(1, dtype=bool), no, no, no, no, np.zeros(1), np.array(["x"], object),
+                         np.ones(1, dtype=bool))
 
 
 def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_stays_stopped(frame):

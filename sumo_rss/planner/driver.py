@@ -48,15 +48,16 @@ class EgoDriver:
     def command(self, snapshot: WorldSnapshot, auditor: Auditor) -> TrajectoryState:
         """Plan if due, then the guarded state for ``snapshot.time + step``."""
         t_next = snapshot.time + self.spec.step_s
+        owed = auditor.owed_by(self.ego_id)
         if self._steps % self.planner.config.replan_every == 0 or self._trajectory is None or \
                 self._trajectory.end < t_next:
-            result = self.planner.plan(snapshot, self.ego_id)
+            result = self.planner.plan(snapshot, self.ego_id, owed)
             self._trajectory, self._frenet = result.trajectory, result.frenet
             self.policies[result.policy] = self.policies.get(result.policy, 0) + 1
         self._steps += 1
         ego = snapshot.index_of(self.ego_id)
         state = self.guard.apply(snapshot, ego, self.planner.frame_for(snapshot, ego),
-                                 self._trajectory.state_at(t_next), auditor.owed_by(self.ego_id))
+                                 self._trajectory.state_at(t_next), owed)
         self._velocity.append((state.speed, float(self._frenet.at(t_next)[3])))
         return state
 

@@ -19,6 +19,7 @@ from ..heap import keep_freed_memory
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
+from ..rss.responsibility import OwedResponses
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
@@ -118,7 +119,9 @@ class EpsilonPlanner:
         self.motion = MotionLayer(config.motion, config.output_step) if config.motion.enabled else None
 
     # -----------------------------------------------------------------------------------------------------
-    def plan(self, snapshot: WorldSnapshot, ego_id: str) -> PlanResult:
+    def plan(self, snapshot: WorldSnapshot, ego_id: str, owed: OwedResponses | None = None) -> PlanResult:
+        """One planning cycle. ``owed``: the ego's open RSS episodes (the auditor's ``owed_by``); a car ahead that
+        the ego owes no longitudinal braking (it cut in) is followed at the gap it left (:meth:`_cut_in_gaps`)."""
         cfg = self.config
         clock = time.perf_counter()
         ego = snapshot.index_of(ego_id)
@@ -148,8 +151,9 @@ class EpsilonPlanner:
                          float(ego_params.lon_brake_max))
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
+        cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
-                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance)
+                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:
@@ -162,7 +166,8 @@ class EpsilonPlanner:
         else:
             ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, ego_params, agents_params,
                           vehicles.length, vehicles.width, cfg.costs,
-                          cfg.sim.ego_idm.headway if cfg.sim.rss_following else None)
+                          cfg.sim.ego_idm.headway if cfg.sim.rss_following else None,
+                          None if cut_in_gap is None else np.isfinite(cut_in_gap[1:]))
         n_real = len(policies)
         cost = np.where(ev.valid, ev.cost, np.inf)
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
@@ -256,6 +261,22 @@ class EpsilonPlanner:
             chain=np.concatenate([chain_e, key.chain]).astype(int))
         params = all_params.take(rows)
         return vehicles, params
+
+    @staticmethod
+    def _cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles,
+                     owed: OwedResponses | None) -> np.ndarray | None:
+        """[m] per vehicle column: the bumper gap now to a car ahead that the ego owes no longitudinal braking in
+        an open episode (inf elsewhere; None: no such car). Such a car cut in: RSS puts its gap on that car (rss.md
+        §5), so the ego keeps the gap it was left, not the RSS distance, and lets it grow back as the car pulls
+        away, rather than braking to restore the distance at once."""
+        cut_in = owed.without_lon_duty() if owed is not None else frozenset()
+        if not cut_in:
+            return None
+        gap = vehicles.s[1:] - vehicles.s[0] - 0.5 * (vehicles.length[0] + vehicles.length[1:])
+        ahead = np.isin(snapshot.ids[key.rows], list(cut_in)) & (gap >= 0.0)
+        if not np.any(ahead):
+            return None
+        return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
 
     def _reference_speed(self, frame: RoadFrame, v: float) -> float:
         horizon = max(20.0, v * v / 1.67)

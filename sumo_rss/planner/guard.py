@@ -7,8 +7,9 @@ Before the planned state for the next step is sent to SUMO it is restricted by
   braking again at once), never harder than b_max where the ego is the front car, and a
   lateral speed towards the other car inside its braking envelope;
 - two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
-  gap to a car ahead in its path is not RSS-safe, and no lateral motion that would make a pair laterally unsafe
-  while it is longitudinally unsafe.
+  gap to a car ahead in its path is not RSS-safe (where the ego owes that car no longitudinal braking, e.g. it
+  cut in, the ego may keep up with it but not close in), and no lateral motion that would make a pair
+  laterally unsafe while it is longitudinally unsafe.
 Every restriction that changes the command is counted. Units: m, s, m/s, m/s².
 """
 from __future__ import annotations
@@ -103,6 +104,9 @@ class ProperResponseGuard:
         if accel > 0.0 and np.any(in_path):
             gap = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])
             v_up = formulas.max_safe_speed_behind(gap, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
+            # A car the ego owes no longitudinal braking (it cut in): the ego may keep up with it, not close in.
+            cut_in = np.isin(snapshot.ids[near[others]][in_path], list(owed.without_lon_duty()))
+            v_up = np.where(cut_in, np.maximum(v_up, v_o[in_path]), v_up)
             cap = max(0.0, (float(np.min(v_up)) - v0) / dt)
             if cap < accel:
                 c.lon_predictive += 1

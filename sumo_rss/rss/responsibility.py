@@ -103,9 +103,16 @@ class OwedResponses:
     owed_lat: np.ndarray  # bool: lateral response owed
     other_is_left: np.ndarray  # bool: the other car is on this car's left
     u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
+    other_id: np.ndarray  # the other car's id
+    structured: np.ndarray  # bool: a road situation (same or opposite direction), not an intersection
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
+
+    def without_lon_duty(self) -> frozenset[str]:
+        """The cars this car owes no longitudinal braking in an open road episode: the episode did not start
+        longitudinally for it (e.g. the other car cut in), so closing the longitudinal gap is not its duty."""
+        return frozenset(self.other_id[self.structured & ~self.must_brake].tolist())
 
 
 class ResponsibilityTracker:
@@ -167,7 +174,8 @@ class ResponsibilityTracker:
         return OwedResponses(
             t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx],
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
-            other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car])
+            other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
+            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]), structured=e.kind[idx] < FIRST_INTERSECTION_CODE)
 
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""

@@ -43,10 +43,13 @@ class Evaluation:
 
 
 def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any, length: np.ndarray,
-                width: np.ndarray, w: CostWeights) -> np.ndarray:
+                width: np.ndarray, w: CostWeights, cut_in_ahead: np.ndarray | None = None) -> np.ndarray:
     """RSS safe-velocity penalty per rollout and sample [R, T+1], summed over agents (epsilon.md §4.1.3).
     Lateral speeds are taken relative to each car's own lane (as the auditor does), so lanes that converge in
-    the frame (a ramp and the motorway) do not read as cars driving at each other."""
+    the frame (a ramp and the motorway) do not read as cars driving at each other. ``cut_in_ahead`` [agents] bool:
+    cars ahead that the ego owes no longitudinal braking (they cut in, rss.md §5): no charge while they are
+    ahead. The ego keeps the gap they left it (:func:`simulate`'s ``cut_in_gap``) and the guard keeps it from
+    closing in."""
     s, d, v, h = sim.s, sim.d, sim.speed, sim.heading
     ds = s[..., 1:] - s[..., :1]
     cos_rel, sin_rel = cos_sin(h - frame.slope(sim.chain, s))
@@ -68,6 +71,8 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
         cut_in[r_idx, k_idx, a_idx] = (gap_x < 0.0) | (v[r_idx, k_idx, 0] < v_low_x - 1e-6)
         cut_in = np.logical_or.accumulate(cut_in, axis=1)
     charged = lat_unsafe & (front | cut_in)
+    if cut_in_ahead is not None:
+        charged &= ~(front & cut_in_ahead)
     penalty = np.zeros(charged.shape[:2])
     if not np.any(charged):
         return penalty
@@ -88,12 +93,12 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,
              v_ref: float, nav: Navigation, rss_ego: Any, rss_agents: Any, length: np.ndarray,
-             width: np.ndarray, w: CostWeights = CostWeights(), rss_following_headway: float | None = None
-             ) -> Evaluation:
+             width: np.ndarray, w: CostWeights = CostWeights(), rss_following_headway: float | None = None,
+             cut_in_ahead: np.ndarray | None = None) -> Evaluation:
     """Costs of ``policies`` from the rollouts in ``sim``; rollout r plays policy ``policy_of[r]`` with scenario
     weight ``weight_of[r]``. ``rss_agents`` covers the agents only (columns 1..n). ``rss_following_headway`` [s]:
     the ego IDM's T when the simulation kept the ego at least the RSS distance behind its leader
-    (``SimSettings.rss_following``; None: it did not)."""
+    (``SimSettings.rss_following``; None: it did not). ``cut_in_ahead`` [agents]: as in :func:`rss_penalty`."""
     ends = sim.layer_end
     starts = np.concatenate([[0], ends[:-1]])
     durations = sim.t[ends] - sim.t[starts]
@@ -102,13 +107,14 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
                      np.where(v > v_ref + w.over_speed_tolerance, w.over_speed * (v - v_ref - w.over_speed_tolerance),
                               0.0))
     v_lead = sim.ego_lead_speed[:, ends]
-    gap = leader_gap_for_cost(sim.ego_lead_gap[:, ends], v, v_lead, rss_ego, rss_agents, rss_following_headway)
+    gap = leader_gap_for_cost(sim.ego_lead_gap[:, ends], v, v_lead, rss_ego, rss_agents, rss_following_headway,
+                              sim.ego_lead_held_gap[:, ends])
     residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
     blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
     c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
                       (w.blocked_by_leader * np.maximum(v - v_lead, 0.0) + w.leader_below_desired * (v_ref - v_lead)),
                       0.0)
-    per_sample = rss_penalty(sim, frame, rss_ego, rss_agents, length, width, w)  # [R, T+1]
+    per_sample = rss_penalty(sim, frame, rss_ego, rss_agents, length, width, w, cut_in_ahead)  # [R, T+1]
     sample_layer = np.searchsorted(ends, np.arange(sim.t.size), side="left")  # sample k ∈ layer (k ≤ end)
     c_rss = np.zeros_like(v)
     for i in range(len(ends)):
@@ -127,19 +133,20 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
 
 
 def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_ego: Any, rss_agents: Any,
-                        rss_following_headway: float | None) -> np.ndarray:
+                        rss_following_headway: float | None, held_gap: Any = np.inf) -> np.ndarray:
     """The ego's bumper gap [m] to its leader as the leader cost reads it (inf: no leader). With RSS following the
     ego's IDM keeps the RSS safe distance where it exceeds the headway v·T, so the ego follows ~100 m back under
     ad_rss where EPSILON's IDM follows 20-30 m back, and the cost's 120 m range would rate a leader that holds
     the ego to its speed as hardly in the way (residual ratio at its 0.4 floor). The cost therefore reads the gap
     as EPSILON's IDM would: less the RSS distance's excess over v·T (to the agent that brakes hardest, as the
-    simulation takes it)."""
+    simulation takes it; a leader's ``held_gap`` [m] in its place where shorter, as the simulation follows it)."""
     if rss_following_headway is None or rss_agents.lon_brake_max.size == 0:
         return gap
     led = np.isfinite(gap)
     rss_distance = formulas.lon_safe_distance_same_dir(v, np.where(led, v_lead, v), rss_ego,
                                                        hardest_braking(rss_agents))
-    return gap - np.where(led, np.maximum(rss_distance - rss_following_headway * v, 0.0), 0.0)
+    following = np.minimum(rss_distance, held_gap)
+    return gap - np.where(led, np.maximum(following - rss_following_headway * v, 0.0), 0.0)
 
 
 def _lane_costs(policies: list[Policy], policy_of: np.ndarray, v: np.ndarray, nav: Navigation,

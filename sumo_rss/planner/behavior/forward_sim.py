@@ -107,6 +107,7 @@ class SimResult:
     valid: np.ndarray  # [R] no collision of the ego with anyone
     ego_lead_gap: np.ndarray  # [R, T+1] ego's leader on its tracked lane: bumper gap [m] (inf: none)
     ego_lead_speed: np.ndarray  # [R, T+1]
+    ego_lead_held_gap: np.ndarray  # [R, T+1] that leader's ``cut_in_gap`` [m] (inf: none; see simulate)
     barrier_steps: np.ndarray  # [R] steps the virtual barrier held the ego back
     chain: np.ndarray  # [R, T+1, n] int: the lane chain each vehicle is in at each sample
 
@@ -186,11 +187,14 @@ def hardest_braking(rss_agents: Any) -> Any:
 
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
-             ego_stop_s: float = np.inf) -> SimResult:
+             ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None) -> SimResult:
     """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
     RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier; ``ego_stop_s`` [m] is a
-    stop line for the ego's front bumper (a stopped leader there: a red light or a yield line). Rollouts that
-    share a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
+    stop line for the ego's front bumper (a stopped leader there: a red light or a yield line). ``cut_in_gap``
+    [n] [m]: per car, a gap the ego keeps to it in place of the RSS distance where that is shorter (inf: none): a
+    car that cut in, which the ego owes no longitudinal braking, is followed at the gap it left rather than
+    braked for at once. Rollouts that share a prefix of the tree are simulated once until they branch
+    (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
     tree = prefix_tree(rollouts)
@@ -204,10 +208,14 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     box_size = ((length[0] + settings.inflation, width[0] + settings.inflation),  # the collision check's boxes
                 (length[1:] + settings.inflation, width[1:] + settings.inflation))
     front_worst = hardest_braking(rss_agents.take(cols[1:])) if settings.rss_following and n > 1 else None
+    held_gap = np.full(n + 1, np.inf)  # by leader column; n: no car ahead
+    if cut_in_gap is not None:
+        held_gap[:n] = cut_in_gap
+    holding = bool(np.any(np.isfinite(held_gap)))
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     # Per layer: the prefix of every rollout, and the samples of its prefixes: [samples, 5, G, n] (s, d, heading,
-    # speed, chain) and [samples, 4, G] of the ego (acceleration, curvature, leader gap, leader speed).
+    # speed, chain) and [samples, 5, G] of the ego (acceleration, curvature, leader gap, speed and held gap).
     layers_recorded: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     first_sample = np.concatenate([[0], layer_end[:-1]])
     samples = np.diff(np.append(first_sample, n_steps + 1))
@@ -234,7 +242,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             scale[:, 0] = rollouts.ego_spacing_scale[first]
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
             idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
-            layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)), np.empty((samples[layer], 4, G))))
+            layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)), np.full((samples[layer], 5, G), np.inf)))
         s, d, v = state.x, state.y, state.speed
         if branching:
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
@@ -248,8 +256,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.array([tracked, now_chain])
         ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
-        free_gaps, free_speeds = leaders_ahead(s, d, v, centres, looks, length,
-                                               (settings.agent_radius, settings.ego_radius), ego_band)
+        free_gaps, free_speeds, leader = leaders_ahead(s, d, v, centres, looks, length,
+                                                       (settings.agent_radius, settings.ego_radius), ego_band)
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
         if np.isfinite(ego_stop_s):
@@ -261,6 +269,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             vehicle_samples[sample, q] = value
         for q, value in enumerate((state.accel[:, 0], state.curvature[:, 0], gap_t[:, 0], v_t[:, 0])):
             ego_samples[sample, q] = value
+        if holding:  # the leader's held gap, unless a lane end or a stop line took its place
+            ego_samples[sample, 4] = np.where(gap_t[:, 0] == free_gaps[0, :, 0], held_gap[leader[0, :, 0]], np.inf)
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
@@ -309,6 +319,10 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             behind_car = (rows % n == 0) & car & ~free
             following[behind_car] = formulas.lon_safe_distance_same_dir(v_rows[behind_car], v_leads[behind_car],
                                                                         rss_ego, front_worst)
+            if holding:
+                lead_of_rows = np.concatenate([leader[0].ravel(), leader[1].ravel()[other], leader[1, :, 0],
+                                               np.full(ev.size, n)])
+                following[behind_car] = np.minimum(following[behind_car], held_gap[lead_of_rows[behind_car]])
         cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
                                 np.where(free, free_gap.ravel()[rows], gaps), IdmParams(**params), dt, following)
         cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:G * n + other.size + G]
@@ -343,9 +357,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     vehicle_samples = np.concatenate([samples[:, :, inverse] for inverse, samples, _ in layers_recorded])
     ego_samples = np.concatenate([samples[:, :, inverse] for inverse, _, samples in layers_recorded])
     s, d, heading, speed, chain = vehicle_samples.transpose(1, 2, 0, 3)
-    ego_accel, ego_curvature, lead_gap, lead_speed = ego_samples.transpose(1, 2, 0)
+    ego_accel, ego_curvature, lead_gap, lead_speed, lead_held_gap = ego_samples.transpose(1, 2, 0)
     return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid[inverse], lead_gap, lead_speed,
-                     barrier_steps[inverse], chain.astype(np.intp))
+                     lead_held_gap, barrier_steps[inverse], chain.astype(np.intp))
 
 
 def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
@@ -357,7 +371,7 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     band where |d - centre(s)| < ``ego_band`` [G] [m] (default: the agents' radius): a body that sticks out
     into their lane is in their way. For the agents, vehicles are sorted along s once per rollout, so the search
     is O(n log n) instead of O(n²); the ego's leaders are found directly.
-    Returns the bumper gaps [m] (inf: none) and the leaders' speeds, [m, G, n]."""
+    Returns the bumper gaps [m] (inf: none), the leaders' speeds and their columns (n: none), [m, G, n]."""
     G, n = s.shape
     cols = np.arange(n)
     row_base = (np.arange(G) * n)[:, None]
@@ -389,7 +403,7 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     j = flat_j - row_base
     ds = s.ravel().take(flat_j) - s
     ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
-    return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j)
+    return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j), np.where(ahead, j, n)
 
 
 def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agent: float, settings: SimSettings
