@@ -99,3 +99,12 @@ def test_the_guard_lets_the_ego_keep_up_with_a_car_that_cut_in_but_not_close_in(
     assert (cut_in.speed - v_ego) / DT == pytest.approx(allowed, abs=1e-9)
     owing = guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False, structured=False))
     assert owing.speed == pytest.approx(v_ego)
+
+
+def test_the_guard_does_not_let_the_ego_speed_up_towards_an_oncoming_car(highway):
+    _, frame = highway
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    snapshot = _ego_behind(20.0, 25.0)
+    snapshot = replace(snapshot, heading=np.array([0.0, np.pi]))
+    planned = TrajectoryState(300.0 + 4.5 + 20.0 * DT, -5.25, 0.0, 20.0 + 1.0 * DT, 1.0)
+    assert guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False)).speed == pytest.approx(20.0)

@@ -242,7 +242,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             scale[:, 0] = rollouts.ego_spacing_scale[first]
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
             idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
-            layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)), np.full((samples[layer], 5, G), np.inf)))
+            layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)),
+                                    np.full((samples[layer], 5, G), np.inf)))
         s, d, v = state.x, state.y, state.speed
         if branching:
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
