@@ -63,16 +63,17 @@ def test_a_car_that_cut_in_is_not_charged_the_rss_cost(highway):
     assert np.all(rss_penalty(*args, np.array([True])) == 0.0)
 
 
-def _owed(other: str, must_brake: bool, structured: bool = True) -> OwedResponses:
+def _owed(other: str, must_brake: bool, same_direction: bool = True) -> OwedResponses:
     no = np.zeros(1, dtype=bool)
     return OwedResponses(np.array([19.0]), np.array([must_brake]), no, no, np.array([not must_brake]), no,
-                         np.zeros(1), np.array([other], dtype=object), np.array([structured]))
+                         np.zeros(1), np.array([other], dtype=object), np.array([same_direction]))
 
 
-def test_the_cars_owed_no_longitudinal_braking_are_those_of_road_episodes_that_started_laterally():
+def test_the_cars_owed_no_longitudinal_braking_are_those_of_same_direction_episodes_that_started_laterally():
     assert _owed("a", must_brake=False).without_lon_duty() == {"a"}
     assert _owed("a", must_brake=True).without_lon_duty() == frozenset()
-    assert _owed("a", must_brake=False, structured=False).without_lon_duty() == frozenset()  # an intersection
+    # An oncoming car or one crossing at an intersection: no following, so no leave to keep up with it.
+    assert _owed("a", must_brake=False, same_direction=False).without_lon_duty() == frozenset()
 
 
 def _ego_behind(v_ego: float, v_other: float) -> WorldSnapshot:
@@ -97,7 +98,7 @@ def test_the_guard_lets_the_ego_keep_up_with_a_car_that_cut_in_but_not_close_in(
     planned = TrajectoryState(300.0 + 4.5 + v_ego * DT, -5.25, 0.0, v_ego + 1.0 * DT, 1.0)
     cut_in = guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False))
     assert (cut_in.speed - v_ego) / DT == pytest.approx(allowed, abs=1e-9)
-    owing = guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False, structured=False))
+    owing = guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False, same_direction=False))
     assert owing.speed == pytest.approx(v_ego)
 
 
@@ -107,4 +108,5 @@ def test_the_guard_does_not_let_the_ego_speed_up_towards_an_oncoming_car(highway
     snapshot = _ego_behind(20.0, 25.0)
     snapshot = replace(snapshot, heading=np.array([0.0, np.pi]))
     planned = TrajectoryState(300.0 + 4.5 + 20.0 * DT, -5.25, 0.0, 20.0 + 1.0 * DT, 1.0)
-    assert guard.apply(snapshot, 0, frame, planned, _owed("other", must_brake=False)).speed == pytest.approx(20.0)
+    oncoming = _owed("other", must_brake=False, same_direction=False)  # the auditor's opposite-direction episode
+    assert guard.apply(snapshot, 0, frame, planned, oncoming).speed == pytest.approx(20.0)

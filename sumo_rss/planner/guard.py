@@ -106,9 +106,7 @@ class ProperResponseGuard:
             v_up = formulas.max_safe_speed_behind(gap, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
             # A car going its way that the ego owes no longitudinal braking (it cut in): the ego may keep up with
             # it, not close in.
-            ahead = near[others][in_path]
-            cut_in = np.isin(snapshot.ids[ahead], list(owed.without_lon_duty())) & \
-                (np.cos(snapshot.heading[ahead] - snapshot.heading[ego]) > 0.0)
+            cut_in = np.isin(snapshot.ids[near[others]][in_path], list(owed.without_lon_duty()))
             v_up = np.where(cut_in, np.maximum(v_up, v_o[in_path]), v_up)
             cap = max(0.0, (float(np.min(v_up)) - v0) / dt)
             if cap < accel:

@@ -14,7 +14,7 @@ import numpy as np
 
 from .params import RssParamArrays
 from .duties import duties_at_threshold
-from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES, PairSituations
+from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
 EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
 STOPPED_SPEED = 0.05  # [m/s] below this a car counts as stopped
@@ -104,15 +104,15 @@ class OwedResponses:
     other_is_left: np.ndarray  # bool: the other car is on this car's left
     u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
     other_id: np.ndarray  # the other car's id
-    structured: np.ndarray  # bool: a road situation (same or opposite direction), not an intersection
+    same_direction: np.ndarray  # bool: one car follows the other (same direction or merge)
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
 
     def without_lon_duty(self) -> frozenset[str]:
-        """The cars this car owes no longitudinal braking in an open road episode: the episode did not start
-        longitudinally for it (e.g. the other car cut in), so closing the longitudinal gap is not its duty."""
-        return frozenset(self.other_id[self.structured & ~self.must_brake].tolist())
+        """The cars going this car's way that it owes no longitudinal braking in an open episode: the episode did
+        not start longitudinally for it (e.g. the other car cut in), so closing the gap is not its duty."""
+        return frozenset(self.other_id[self.same_direction & ~self.must_brake].tolist())
 
 
 class ResponsibilityTracker:
@@ -175,7 +175,7 @@ class ResponsibilityTracker:
             t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx],
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
-            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]), structured=e.kind[idx] < FIRST_INTERSECTION_CODE)
+            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]), same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES))
 
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""
