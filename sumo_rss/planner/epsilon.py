@@ -162,7 +162,7 @@ class EpsilonPlanner:
         agents_params = params.take(np.arange(1, len(vehicles)))
         if cfg.mode == "mpdm":
             from .mpdm import mpdm_costs
-            ev = mpdm_costs(sim, everything, policy_of, weight_of, v_ref, vehicles, cfg.costs)
+            ev = mpdm_costs(sim, everything, policy_of, weight_of, v_ref, vehicles)
         else:
             ev = evaluate(sim, frame, everything, policy_of, weight_of, v_ref, nav, ego_params, agents_params,
                           vehicles.length, vehicles.width, cfg.costs,

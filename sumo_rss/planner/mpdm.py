@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from .behavior.dcp_tree import Lat, Policy
-from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import Evaluation
 from .behavior.forward_sim import LEADER_RANGE, SimResult, Vehicles, boxes_overlap
 
@@ -21,7 +20,7 @@ EFFICIENCY_WEIGHT = 0.5
 
 
 def mpdm_costs(sim: SimResult, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray, v_ref: float,
-               vehicles: Vehicles, w: CostWeights) -> Evaluation:
+               vehicles: Vehicles) -> Evaluation:
     L, W = vehicles.length, vehicles.width
     near = boxes_overlap(sim.s[..., :1], sim.d[..., :1], sim.heading[..., :1], L[0] + SAFETY_INFLATION,
                          W[0] + SAFETY_INFLATION, sim.s[..., 1:], sim.d[..., 1:], sim.heading[..., 1:],

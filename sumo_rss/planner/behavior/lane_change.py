@@ -127,7 +127,7 @@ def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, r
     ego_left = d_e >= d_o
     lat_gap = np.abs(d_e - d_o) - 0.5 * (w_e + w_o)
     # Reaches at the speeds towards the other car; the ego's for both sides, on its own (smaller) shape.
-    reach_e = np.where(ego_left, formulas.lateral_reach(-u_e, rss_ego), formulas.lateral_reach(u_e, rss_ego))
+    reach_e = formulas.lateral_reach(np.where(ego_left, -u_e, u_e), rss_ego)
     reach_o = formulas.lateral_reach(np.where(ego_left, u_o, -u_o), rss_other)
     lat_min = formulas.combine_lateral(reach_e, reach_o, rss_ego.lat_fluctuation_margin,
                                        rss_other.lat_fluctuation_margin)
