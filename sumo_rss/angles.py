@@ -13,7 +13,7 @@ import numpy as np
 def wrap_angle(angle: Any) -> np.ndarray:
     """``angle`` [rad] wrapped into (-π, π] (returned unchanged, as a new array, where it already is)."""
     angle = np.array(angle, dtype=float)
-    if np.all((angle > -np.pi) & (angle <= np.pi)):
+    if angle.min(initial=0.0) > -np.pi and angle.max(initial=0.0) <= np.pi:
         return angle[()]  # a scalar for a scalar, as below
     return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 

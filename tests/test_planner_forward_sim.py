@@ -211,7 +211,7 @@ def test_leader_search_matches_the_pairwise_definition():
     length = rng.choice([4.5, 6.0, 12.0], n)
     centres = np.broadcast_to(np.array([-3.5, 0.0, 3.5])[:, None, None], (3, G, n))
     looks = np.stack([rng.integers(0, 3, (G, n)), lane])
-    gaps, speeds, leaders = leaders_ahead(s, d, v, centres, looks, length, (1.25, 2.2))
+    gaps, speeds, leaders = leaders_ahead(s, v, np.abs(d - centres), looks, length, (1.25, 2.2))
     radius = np.where(np.arange(n) == 0, 2.2, 1.25)  # column 0 is the ego
     for m in range(2):
         for r in range(G):

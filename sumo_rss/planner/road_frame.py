@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..angles import wrap_angle
-from .lanes import CURRENT, LaneChains
+from .lanes import CURRENT, LEFT, RIGHT, LaneChains
 
 GRID_STEP = 1.0  # [m] spacing of the offset profiles
 
@@ -93,7 +93,7 @@ class RoadFrame:
     def centres_at(self, s: Any) -> np.ndarray:
         """[3, *s.shape]: d of every chain's centre line at ``s`` (or their :class:`FrameCells`)."""
         i, f = self._cells(s)
-        return self.centre[:, i] * (1.0 - f) + self.centre[:, i + 1] * f
+        return self.centre.take(i, axis=1) * (1.0 - f) + self.centre.take(i + 1, axis=1) * f
 
     def locate(self, s: Any) -> FrameCells:
         """The grid cells of frame positions ``s`` [m] (clamped to the profiles' ends)."""
@@ -106,13 +106,15 @@ class RoadFrame:
         cells = s if isinstance(s, FrameCells) else self.locate(s)
         return cells.index, cells.fraction
 
-    def chain_of_offsets(self, centres: np.ndarray, s: Any, d: Any) -> np.ndarray:
-        """The existing chain nearest to each (s, d), given ``centres = centres_at(s)``."""
-        s, d = np.asarray(s, dtype=float), np.asarray(d, dtype=float)
+    def chain_of_offsets(self, offset: np.ndarray, s: Any) -> np.ndarray:
+        """The existing chain nearest to each point at ``s``, given ``offset`` = |d − centres_at(s)| [3, ...] [m]
+        (the first of equally near ones)."""
+        s = np.asarray(s, dtype=float)
         shape = (3,) + (1,) * s.ndim
         usable = self.exists.reshape(shape) & (s >= self.extent[:, 0].reshape(shape)) & \
             (s <= self.extent[:, 1].reshape(shape))
-        return np.argmin(np.where(usable, np.abs(d - centres), np.inf), axis=0)
+        right, current, left = np.where(usable, offset, np.inf)
+        return np.where(left < np.minimum(right, current), LEFT, np.where(current < right, CURRENT, RIGHT))
 
     def slope(self, chain: Any, s: Any) -> np.ndarray:
         """Heading [rad] of ``chain``'s centre line relative to the frame at ``s`` (or their :class:`FrameCells`;
@@ -130,7 +132,7 @@ class RoadFrame:
     def nearest_chain(self, s: Any, d: Any) -> np.ndarray:
         """The existing chain whose centre line is nearest to each (s, d), within its extent."""
         s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
-        return self.chain_of_offsets(self.centres_at(s), s, d)
+        return self.chain_of_offsets(np.abs(d - self.centres_at(s)), s)
 
     def to_frame(self, x: Any, y: Any, heading: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(s, d, heading relative to the centre line) of points in the world [m, m, rad]."""

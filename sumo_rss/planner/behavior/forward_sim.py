@@ -30,6 +30,7 @@ from .lane_change import GapCars, lane_change_command
 
 NO_LEADER_GAP = 100.0  # [m] a free road is a virtual leader 100 + 100·v ahead at the own speed
 LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
+_IDM_FIELDS = tuple(IdmParams.__dataclass_fields__)
 
 
 @dataclass(frozen=True)
@@ -147,7 +148,7 @@ def boxes_overlap(ax: Any, ay: Any, ah: Any, al: Any, aw: Any, bx: Any, by: Any,
         (np.abs(dy) < 0.5 * (aw + bw + al * abs_ah + bl * abs_bh))  # every input takes part: the full shape
     shape = close.shape
     overlap = np.zeros(shape, dtype=bool)
-    if not np.any(close):
+    if not close.any():
         return overlap
     dx, dy, ah, al, aw, bh, bl, bw = (np.broadcast_to(np.asarray(a, dtype=float), shape)[close]
                                       for a in (dx, dy, ah, al, aw, bh, bl, bw))
@@ -236,6 +237,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             backup = rollouts.ego_backup[first]
             tracked = rollouts.agent_chain[first].copy()
             tracked[:, 0] = rollouts.ego_chain[first, layer]
+            tracked_cells = tracked * (G * n) + np.arange(G * n).reshape(G, n)  # [G, n] into flat [3, G, n]
             v0 = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (G, 1))
             v0[:, 0] = rollouts.ego_v0[first]
             scale = np.ones((G, n))
@@ -249,15 +251,16 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], *box_size[0], s[:, 1:], d[:, 1:],
                             state.heading[:, 1:], *box_size[1])
-        valid = valid & ~np.any(hit, axis=1)
+        valid = valid & ~hit.any(axis=1)
         centres = frame.centres_at(cells)  # [3, G, n]
-        now_chain = frame.chain_of_offsets(centres, s, d)
+        offset = np.abs(d - centres)  # [3, G, n] from each chain's centre line [m]
+        now_chain = frame.chain_of_offsets(offset, s)
         if branching:
             gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, length, width, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
         looks = np.array([tracked, now_chain])
         ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
-        free_gaps, free_speeds, leader = leaders_ahead(s, d, v, centres, looks, length,
+        free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
                                                        (settings.agent_radius, settings.ego_radius), ego_band)
         (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
                                                settings.lane_end_margin)
@@ -266,16 +269,13 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap_c[:, 0], v_c[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_c[:, 0], v_c[:, 0])
         _, vehicle_samples, ego_samples = layers_recorded[-1]
         sample = k - first_sample[layer]
-        for q, value in enumerate((s, d, state.heading, v, now_chain)):
-            vehicle_samples[sample, q] = value
-        for q, value in enumerate((state.accel[:, 0], state.curvature[:, 0], gap_t[:, 0], v_t[:, 0])):
-            ego_samples[sample, q] = value
+        vehicle_samples[sample] = (s, d, state.heading, v, now_chain)
+        ego_samples[sample, :4] = (state.accel[:, 0], state.curvature[:, 0], gap_t[:, 0], v_t[:, 0])
         if holding:  # the leader's held gap, unless a lane end or a stop line took its place
             ego_samples[sample, 4] = np.where(gap_t[:, 0] == free_gaps[0, :, 0], held_gap[leader[0, :, 0]], np.inf)
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
-        free_gap = NO_LEADER_GAP + NO_LEADER_GAP * v
         # The ego's own-lane leader without the waiting margin before a lane end (used once a change is going).
         gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
                                  free_speeds[1, :, :1], 0.0)
@@ -283,15 +283,16 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap_go[:, 0], v_go[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_go[:, 0], v_go[:, 0])
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
-        lane_target = frame.lane_ahead(np.take_along_axis(centres, tracked[None], axis=0)[0], lane_slope, ell)
+        lane_target = frame.lane_ahead(centres.ravel().take(tracked_cells), lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
         changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
+        any_changing = bool(changing.any())
         hold = evasive = np.zeros(G, dtype=bool)
-        if np.any(changing):
+        if any_changing:
             lc_cmd, barrier, evasive_v0 = lane_change_command(frame, tracked[:, 0], state, cells, length, width, gap,
                                                               idm, v0, settings, rss_ego, dt)
             # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
-            barrier &= np.abs(d[:, 0] - centres[tracked[:, 0], np.arange(G), 0]) >= ego_band
+            barrier &= np.abs(d[:, 0] - centres.ravel().take(tracked_cells[:, 0])) >= ego_band
             hold = changing & barrier
             evasive = changing & np.isfinite(evasive_v0)
         ev = np.flatnonzero(evasive)
@@ -307,12 +308,12 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         v_rows = v.ravel()[rows]
         free = np.isinf(gaps)
         desired = v0.ravel()[rows]
-        params = {name: values[rows] for name, values in idm_flat.items()}
+        params = idm_flat.take(rows, axis=1)  # [IDM fields, rows]
         if ev.size:
             desired[-ev.size:] = evasive_v0[ev]
-            for name, value in (("s0", settings.ego_idm.s0), ("headway", settings.evasive_headway),
-                                ("accel", settings.evasive_accel)):
-                params[name][-ev.size:] = value
+            params[_IDM_FIELDS.index("s0"), -ev.size:] = settings.ego_idm.s0
+            params[_IDM_FIELDS.index("headway"), -ev.size:] = settings.evasive_headway
+            params[_IDM_FIELDS.index("accel"), -ev.size:] = settings.evasive_accel
         following = np.zeros(rows.size)
         if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance
             car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
@@ -325,12 +326,13 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                                np.full(ev.size, n)])
                 following[behind_car] = np.minimum(following[behind_car], held_gap[lead_of_rows[behind_car]])
         cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
-                                np.where(free, free_gap.ravel()[rows], gaps), IdmParams(**params), dt, following)
+                                np.where(free, NO_LEADER_GAP + NO_LEADER_GAP * v_rows, gaps), IdmParams(*params), dt,
+                                following)
         cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:G * n + other.size + G]
         cmd_c = cmd_t.copy()
         cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
         speed_cmd = np.minimum(cmd_t, cmd_c)
-        if np.any(changing):
+        if any_changing:
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
             current_cap[ev] = np.maximum(current_cap[ev], cmd[cmd.size - ev.size:])
@@ -363,7 +365,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                      lead_held_gap, barrier_steps[inverse], chain.astype(np.intp))
 
 
-def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarray, lanes: np.ndarray,
+def leaders_ahead(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.ndarray,
                   length: np.ndarray, radii: tuple[float, float], ego_band: np.ndarray | None = None
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
@@ -372,6 +374,7 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     band where |d - centre(s)| < ``ego_band`` [G] [m] (default: the agents' radius): a body that sticks out
     into their lane is in their way. For the agents, vehicles are sorted along s once per rollout, so the search
     is O(n log n) instead of O(n²); the ego's leaders are found directly.
+    ``offset`` [chains, G, n]: |d − centre(s)| of every vehicle to every chain [m].
     Returns the bumper gaps [m] (inf: none), the leaders' speeds and their columns (n: none), [m, G, n]."""
     G, n = s.shape
     cols = np.arange(n)
@@ -380,12 +383,11 @@ def leaders_ahead(s: np.ndarray, d: np.ndarray, v: np.ndarray, centres: np.ndarr
     rank = np.empty(G * n, dtype=np.intp)
     rank[sorted_flat] = np.arange(G * n) % n
     rank = rank.reshape(G, n)
-    chains = centres.shape[0]
-    offset = np.abs(d[None] - centres)  # [chains, G, n]
+    chains = offset.shape[0]
     band = np.full((G, n), radii[0])
     if ego_band is not None:
         band[:, 0] = ego_band
-    member = (offset < band).reshape(chains, -1)[:, sorted_flat].reshape(chains, G, n)
+    member = (offset < band).reshape(chains, -1).take(sorted_flat, axis=1).reshape(chains, G, n)
     # The first member strictly after each sorted position (n: none).
     position = np.where(member, cols, n)
     following = np.full((chains, G, n), n)
@@ -417,10 +419,11 @@ def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agen
     return np.maximum(settings.agent_radius, reach + 0.5 * widest_agent)
 
 
-def _flat_idm(idm: IdmParams, G: int, n: int) -> dict[str, np.ndarray]:
-    """Per-vehicle IDM parameters as flat [G·n] arrays (row-major over rollouts and vehicles)."""
-    return {name: np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n)).ravel()
-            for name in idm.__dataclass_fields__}
+def _flat_idm(idm: IdmParams, G: int, n: int) -> np.ndarray:
+    """Per-vehicle IDM parameters as one [fields, G·n] array (fields in IdmParams' order; row-major over rollouts
+    and vehicles)."""
+    return np.stack([np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n)).ravel()
+                     for name in _IDM_FIELDS])
 
 
 def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,

@@ -22,14 +22,15 @@ if TYPE_CHECKING:
 @dataclass(frozen=True, eq=False)
 class GapCars:
     """Per rollout, the nearest agents ahead of and behind the ego on its target lane, found once per layer:
-    ``index`` [G, 2] (front, rear; 0 where ``present`` is False); ``trio`` indexes [G, n] arrays as [G, 3]
-    (ego, front, rear); ``half_length`` and ``width`` [G, 2] of the two cars [m]; ``params`` their RSS parameters
-    [G, 2]; ``rear_params`` / ``front_params`` [2, G] those of the rear and the front car of the two longitudinal
-    pairs (the rear gap car behind the ego, the ego behind the front gap car)."""
+    ``index`` [G, 2] (front, rear; 0 where ``present`` is False); ``trio`` [G, 3]: the flat indices into [G, n]
+    arrays of the ego, the front and the rear car (``x.take(trio)``); ``half_length`` and ``width`` [G, 2] of the
+    two cars [m]; ``params`` their RSS parameters [G, 2]; ``rear_params`` / ``front_params`` [2, G] those of the
+    rear and the front car of the two longitudinal pairs (the rear gap car behind the ego, the ego behind the
+    front gap car)."""
 
     index: np.ndarray
     present: np.ndarray
-    trio: tuple[np.ndarray, np.ndarray]
+    trio: np.ndarray
     half_length: np.ndarray
     width: np.ndarray
     params: Any
@@ -51,13 +52,13 @@ class GapCars:
         present = np.isfinite(np.take_along_axis(distance, index[:, None, :], axis=1)[:, 0])
         index = np.where(present, index, 0)
         vehicles = np.concatenate([np.zeros((rows.size, 1), dtype=index.dtype), index], axis=1)  # ego, front, rear
-        return cls(index, present, (rows[:, None], vehicles), 0.5 * length[index], width[index],
-                   rss_vehicles.take(index), rss_vehicles.take(vehicles[:, _REAR_CARS].T),
-                   rss_vehicles.take(vehicles[:, _FRONT_CARS].T))
+        return cls(index, present, rows[:, None] * s.shape[1] + vehicles, 0.5 * length[index], width[index],
+                   rss_vehicles.take(index), rss_vehicles.take(vehicles.take(_REAR_CARS, axis=1).T),
+                   rss_vehicles.take(vehicles.take(_FRONT_CARS, axis=1).T))
 
 
 # Columns of a trio (ego, front, rear) that are the rear / the front car of the two longitudinal pairs.
-_REAR_CARS, _FRONT_CARS = (2, 0), (0, 1)
+_REAR_CARS, _FRONT_CARS = np.array((2, 0)), np.array((0, 1))
 
 
 def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleState, cells: FrameCells,
@@ -74,7 +75,7 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
     already in the way of the target lane's cars: the footprint band the agents see it by.)"""
     s, v = state.x, state.speed
     has_f, has_r = gap.present[:, 0], gap.present[:, 1]
-    s3, v3 = s[gap.trio], v[gap.trio]  # [G, 3]: ego, front, rear
+    s3, v3 = s.take(gap.trio), v.take(gap.trio)  # [G, 3]: ego, front, rear
     s_e, v_e = s3[:, 0], v3[:, 0]
     s0, T = idm.s0[:, 0], idm.headway[:, 0]
     half = 0.5 * length[0]
@@ -98,7 +99,7 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
     cmd = np.maximum(v_e + a_track * dt, 0.0)
     # RSS in the two pairs [2, G] (bumper gaps): the rear gap car behind the ego, the ego behind the front gap car.
     # At constant speeds the safe distances stay the same for commit_time; only the gaps change.
-    v_rear, v_front = v3[:, _REAR_CARS].T, v3[:, _FRONT_CARS].T
+    v_rear, v_front = v3.take(_REAR_CARS, axis=1).T, v3.take(_FRONT_CARS, axis=1).T
     rear, front = gap.rear_params, gap.front_params
     reach = formulas.lon_reach(v_rear, rear, rear.lon_brake_min)
     d_min = formulas.combine_same_dir(reach, formulas.stopping_distance(v_front, front.lon_brake_max),
@@ -111,9 +112,9 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
     safe_later = formulas.is_safe_distance(np.minimum(gaps, gaps + (v_front - v_rear) * st.commit_time), d_min)
     rear_unsafe, front_unsafe = has_r & ~safe_later[0], has_f & ~safe_later[1]
     # Lateral speeds relative to the target lane (+ = left) of the ego and the two gap cars.
-    slope = frame.slope(target[:, None], FrameCells(cells.index[gap.trio], cells.fraction[gap.trio]))
-    v_lat = v3 * cos_sin(state.heading[gap.trio] - slope)[1]
-    d3 = state.y[gap.trio]
+    slope = frame.slope(target[:, None], FrameCells(cells.index.take(gap.trio), cells.fraction.take(gap.trio)))
+    v_lat = v3 * cos_sin(state.heading.take(gap.trio) - slope)[1]
+    d3 = state.y.take(gap.trio)
     lat_safe = laterally_safe(d3[:, :1], d3[:, 1:], v_lat[:, :1], v_lat[:, 1:], width[0], gap.width, rss_ego,
                               gap.params)  # [G, 2]: to the front and the rear car
     barrier = (rear_unsafe & lat_safe[:, 1]) | (front_unsafe & lat_safe[:, 0])
