@@ -75,6 +75,24 @@ def test_every_sampled_point_is_inside_its_cube_and_the_dynamic_bounds():
     assert bound > 0.05 and curve.control_points(0)[1, 1].max() == pytest.approx(bound, abs=TOL)
 
 
+def test_constraint_rows_are_the_curves_values_for_each_problems_own_segment_durations():
+    """A·x on a random curve: the start's position, velocity and acceleration, the end's position and velocity,
+    and every segment's position, velocity and acceleration control points. Two problems with the same number of
+    segments (the matrix pattern is built once per N) but different durations each get their own values."""
+    rng = np.random.default_rng(7)
+    for knots in (np.array([0.0, 0.4, 1.0, 1.6]), np.array([0.0, 1.1, 1.3, 2.9])):
+        problem = replace(_swerve(), knots=knots)
+        m = assemble(problem)
+        curve = PiecewiseBezier(knots, rng.uniform(-5.0, 5.0, (3, 2, 6)))
+        ax = m.A @ (curve.ctrl @ np.linalg.inv(BASIS.T)).ravel()
+        start = np.stack([curve.evaluate(knots[:1], k)[0] for k in range(3)], axis=1)  # [dim, (p, v, a)]
+        end = np.stack([curve.evaluate(knots[-1:], k)[0] for k in range(2)], axis=1)
+        assert np.allclose(ax[:6], start.ravel(), rtol=0.0, atol=1e-9)
+        assert np.allclose(ax[6:10], end.ravel(), rtol=0.0, atol=1e-9)
+        hull = np.concatenate([curve.control_points(k) for k in range(3)], axis=-1)  # [N, dim, 6 + 5 + 4]
+        assert np.allclose(ax[m.n_eq:], hull.ravel(), rtol=0.0, atol=1e-9)
+
+
 def test_the_cost_is_jerk_plus_reference_tracking():
     """On the solution, ½xᵀPx + qᵀx + w·Σ‖ref_k‖² equals ∫‖jerk‖²dt (by quadrature) + w·Σ‖p(t_k) − ref_k‖²."""
     problem = _swerve(s_start=0.0, weight=np.array([1.0, 30.0]))

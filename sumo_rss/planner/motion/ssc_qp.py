@@ -14,6 +14,7 @@ previous solution. Units: m, s, m/s, m/s².
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -101,14 +102,17 @@ _INEQ = [(i, 0, _E[i], "T") for i in range(N_CTRL)] + \
     [(N_CTRL + i, 0, VEL_FACTOR * D1[i], "1") for i in range(N_CTRL - 1)] + \
     [(2 * N_CTRL - 1 + i, 0, ACC_FACTOR * D2[i], "/T") for i in range(N_CTRL - 2)]
 
+_SCALES = ("T", "1", "/T")  # a template entry's scaling by its segment's duration T: ×T, ×1, ÷T
+
 
 def _entries(template: list) -> tuple[np.ndarray, ...]:
     """The template's non-zero entries on the basis variables z: (row, segment offset, z index, coefficient,
-    scaling)."""
+    scaling as an index into _SCALES)."""
     out = []
     for row, offset, coefs, scale in template:
         on_z = coefs @ BASIS
-        out += [(row, offset, int(i), float(on_z[i]), scale) for i in np.flatnonzero(np.abs(on_z) > 1e-12)]
+        out += [(row, offset, int(i), float(on_z[i]), _SCALES.index(scale))
+                for i in np.flatnonzero(np.abs(on_z) > 1e-12)]
     return tuple(np.array(x) for x in zip(*out))
 
 
@@ -116,24 +120,59 @@ _GROUPS = {name: _entries(template) for name, template in
            (("start", _START), ("end", _END), ("join", _JOIN), ("ineq", _INEQ))}
 
 
-def _group(name: str, segments: np.ndarray, first_row: int, rows_per: int, T: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@dataclass(frozen=True, eq=False)
+class _Pattern:
+    """The stored entries of A and P for N segments, in osqp's column-major order (built once per N): A's entry
+    value is ``a_coef`` scaled by its segment's ``a_seg`` duration as ``a_scale`` (an index into _SCALES) says;
+    P's are the ``p_take`` elements of the cost's blocks [N, DIMS, 6, 6]."""
+
+    a_shape: tuple[int, int]
+    a_indices: np.ndarray
+    a_indptr: np.ndarray
+    a_coef: np.ndarray
+    a_seg: np.ndarray
+    a_scale: np.ndarray
+    n_eq: int
+    p_indices: np.ndarray
+    p_indptr: np.ndarray
+    p_take: np.ndarray
+
+
+def _group(name: str, segments: np.ndarray, first_row: int, rows_per: int) -> tuple[np.ndarray, ...]:
     """Entries of a template repeated over ``segments`` × dims; group g = (segment index k, dim) starts at row
-    first_row + (k·DIMS + dim)·rows_per."""
+    first_row + (k·DIMS + dim)·rows_per. Returns (rows, columns, coefficients, segments, scale indices)."""
     r, off, c, coef, scale = _GROUPS[name]
     k, dim, e = np.meshgrid(np.arange(segments.size), np.arange(DIMS), np.arange(r.size), indexing="ij")
     seg = segments[k] + off[e]
-    factor = np.where(scale[e] == "T", T[seg], np.where(scale[e] == "/T", 1.0 / T[seg], 1.0))
     rows = first_row + (k * DIMS + dim) * rows_per + r[e]
-    return rows.ravel(), _var(seg, dim, c[e]).ravel(), (coef[e] * factor).ravel()
+    return tuple(x.ravel() for x in (rows, _var(seg, dim, c[e]), coef[e], seg, scale[e]))
 
 
-def _csc(rows: np.ndarray, cols: np.ndarray, vals: np.ndarray, shape: tuple[int, int]) -> sp.csc_matrix:
-    """A CSC matrix whose stored entries are exactly (rows, cols) in column-major order, zeros included (so the
-    same pattern always gives the same ``data`` layout for osqp's in-place updates)."""
+def _column_major(rows: np.ndarray, cols: np.ndarray, n_cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """The order that stores entries (rows, cols) column by column, and the CSC column pointers."""
     order = np.lexsort((rows, cols))
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=shape[1]))])
-    return sp.csc_matrix((vals[order], rows[order], indptr), shape=shape)
+    return order, np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n_cols))])
+
+
+@functools.lru_cache(maxsize=64)
+def _pattern(N: int) -> _Pattern:
+    """A's rows: the start and end equalities, the joins', then every segment's inequalities; P: the upper
+    triangle of every segment's and dimension's 6×6 block."""
+    groups = [("start", np.array([0]), 3), ("end", np.array([N - 1]), 2), ("join", np.arange(N - 1), 3),
+              ("ineq", np.arange(N), INEQ_PER_DIM)]
+    parts, first = [], 0
+    for name, segments, per in groups:
+        parts.append(_group(name, segments, first, per))
+        first += segments.size * DIMS * per
+    rows, cols, coef, seg, scale = (np.concatenate(x) for x in zip(*parts))
+    order, a_indptr = _column_major(rows, cols, N * PER_SEGMENT)
+    upper = np.triu_indices(N_CTRL)
+    k, dim, e = np.meshgrid(np.arange(N), np.arange(DIMS), np.arange(upper[0].size), indexing="ij")
+    p_rows, p_cols = _var(k, dim, upper[0][e]).ravel(), _var(k, dim, upper[1][e]).ravel()
+    p_take = np.ravel_multi_index((k, dim, upper[0][e], upper[1][e]), (N, DIMS, N_CTRL, N_CTRL)).ravel()
+    p_order, p_indptr = _column_major(p_rows, p_cols, N * PER_SEGMENT)
+    return _Pattern((first, N * PER_SEGMENT), rows[order], a_indptr, coef[order], seg[order], scale[order],
+                    (3 + 2 + 3 * (N - 1)) * DIMS, p_rows[p_order], p_indptr, p_take[p_order])
 
 
 def assemble(problem: QpProblem) -> QpMatrices:
@@ -142,15 +181,11 @@ def assemble(problem: QpProblem) -> QpMatrices:
     T = np.diff(problem.knots)
     if np.any(T <= 0.0):
         raise MotionFailure("qp_shape", "segment durations must be positive")
-    groups = [("start", np.array([0]), 3), ("end", np.array([N - 1]), 2), ("join", np.arange(N - 1), 3),
-              ("ineq", np.arange(N), INEQ_PER_DIM)]
-    rows, cols, vals, first = [], [], [], 0
-    for name, segments, per in groups:
-        r, c, v = _group(name, segments, first, per, T)
-        rows.append(r), cols.append(c), vals.append(v)
-        first += segments.size * DIMS * per
-    n_eq = (3 + 2 + 3 * (N - 1)) * DIMS
-    A = _csc(np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), (first, N * PER_SEGMENT))
+    pat = _pattern(N)
+    T_entry = T[pat.a_seg]
+    factor = np.where(pat.a_scale == _SCALES.index("T"), T_entry,
+                      np.where(pat.a_scale == _SCALES.index("/T"), 1.0 / T_entry, 1.0))
+    A = sp.csc_matrix((pat.a_coef * factor, pat.a_indices, pat.a_indptr), shape=pat.a_shape)
     eq = np.concatenate([problem.start.ravel(), problem.end.ravel(), np.zeros(3 * (N - 1) * DIMS)])
     lo_pos, hi_pos = problem.cubes[..., 0], problem.cubes[..., 1]  # [N, 2]
     speed = np.array([b.s_speed, b.d_speed])
@@ -161,12 +196,14 @@ def assemble(problem: QpProblem) -> QpMatrices:
     high = np.concatenate([np.repeat(hi_pos[..., None], N_CTRL, -1),
                            np.broadcast_to(speed[:, 1:], (N, DIMS, N_CTRL - 1)),
                            np.broadcast_to(accel[:, 1:], (N, DIMS, N_CTRL - 2))], axis=-1)
-    P, q = _cost(problem, T)
-    return QpMatrices(P, q, A, np.concatenate([eq, low.ravel()]), np.concatenate([eq, high.ravel()]), n_eq)
+    blocks, q = _cost(problem, T)
+    P = sp.csc_matrix((blocks.ravel()[pat.p_take], pat.p_indices, pat.p_indptr), shape=(N * PER_SEGMENT,) * 2)
+    return QpMatrices(P, q, A, np.concatenate([eq, low.ravel()]), np.concatenate([eq, high.ravel()]), pat.n_eq)
 
 
-def _cost(problem: QpProblem, T: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
-    """Jerk (2H/T³ per segment and dim) plus reference tracking w·‖T·B(τ_k)·c − ref_k‖², on the basis variables."""
+def _cost(problem: QpProblem, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Jerk (2H/T³ per segment and dim) plus reference tracking w·‖T·B(τ_k)·c − ref_k‖², on the basis
+    variables: the Hessian's blocks [N, DIMS, 6, 6] and q."""
     N = problem.segments
     w = np.broadcast_to(np.asarray(problem.weight, dtype=float), (DIMS,))
     blocks = np.repeat((2.0 * JERK_HESSIAN)[None, None], N, 0) / (T ** 3)[:, None, None, None]  # [N, 1, 6, 6]
@@ -177,13 +214,7 @@ def _cost(problem: QpProblem, T: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]
     row = T[seg, None] * bernstein(DEGREE, tau)  # [K, 6]: p(t_k) = row · c
     np.add.at(blocks, seg, 2.0 * w[None, :, None, None] * (row[:, :, None] * row[:, None, :])[:, None])
     np.add.at(q, seg, -2.0 * w[None, :, None] * problem.ref[:, :, None] * row[:, None, :])
-    blocks = BASIS.T @ blocks @ BASIS
-    q = q @ BASIS
-    upper = np.triu_indices(N_CTRL)
-    k, dim, e = np.meshgrid(np.arange(N), np.arange(DIMS), np.arange(upper[0].size), indexing="ij")
-    P = _csc(_var(k, dim, upper[0][e]).ravel(), _var(k, dim, upper[1][e]).ravel(),
-             blocks[k, dim, upper[0][e], upper[1][e]].ravel(), (N * PER_SEGMENT, N * PER_SEGMENT))
-    return P, q.ravel()
+    return BASIS.T @ blocks @ BASIS, (q @ BASIS).ravel()
 
 
 def control_points(problem: QpProblem, x: np.ndarray) -> np.ndarray:
