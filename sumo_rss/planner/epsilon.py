@@ -112,6 +112,7 @@ class EpsilonPlanner:
         self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
         self._curvature = 0.0
         self._last_lane: tuple[WorldSnapshot, int, tuple[int, RoadFrame]] | None = None
+        self._last_centre: tuple[WorldSnapshot, int, RoadFrame, tuple[np.ndarray, ...]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
@@ -214,14 +215,27 @@ class EpsilonPlanner:
         route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
         edges = tuple(self.network.edge_indices(route).tolist())
         frame = self._frame(lane, edges)
-        s, d, _ = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
-                                         0.5 * float(snapshot.length[ego]))
+        s, d, _ = self._ego_centre(snapshot, ego, frame)
         side = {LEFT: self.network.lane_left, RIGHT: self.network.lane_right}.get(int(frame.nearest_chain(s, d)[0]))
         if side is not None and side[lane] >= 0:
             lane = int(side[lane])
             frame = self._frame(lane, edges)
         self._last_lane = (snapshot, ego, (lane, frame))
         return lane, frame
+
+    def _ego_centre(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ego's centre (s, d, heading_rel) [1] in ``frame`` from its front bumper (the last answer is kept:
+        the lane choice and the vehicle setup both ask, mostly in the same frame). Read-only arrays."""
+        last = self._last_centre
+        if last is not None and last[0] is snapshot and last[1] == ego and last[2] is frame:
+            return last[3]
+        centre = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
+                                        0.5 * float(snapshot.length[ego]))
+        for array in centre:
+            array.flags.writeable = False
+        self._last_centre = (snapshot, ego, frame, centre)
+        return centre
 
     def _frame(self, lane: int, edges: tuple[int, ...]) -> RoadFrame:
         """The frame around ``lane`` along the route ``edges`` (cached)."""
@@ -244,8 +258,7 @@ class EpsilonPlanner:
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, key: KeyVehicles,
                   all_params: RssParamArrays) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
-        s_e, d_e, h_e = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
-                                               0.5 * float(snapshot.length[ego]))
+        s_e, d_e, h_e = self._ego_centre(snapshot, ego, frame)
         chain_e = frame.nearest_chain(s_e, d_e)
         n = rows.size
         ego_column, limits = np.arange(n) == 0, self.config.sim

@@ -66,12 +66,13 @@ class ProperResponseGuard:
         me = int(np.flatnonzero(near == ego)[0])
         others = np.delete(np.arange(near.size), me)
         half = 0.5 * float(snapshot.length[ego])
-        # The ego's own centre from its bumper, as the planner placed it (RoadFrame.bumper_at).
-        s_c, d_c, h_c = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego], half)
+        # The ego's own centre from its bumper, as the planner placed it (RoadFrame.bumper_at), now and planned.
+        s_c, d_c, h_c = frame.centre_of_bumper(np.array([snapshot.x[ego], planned.x]),
+                                               np.array([snapshot.y[ego], planned.y]),
+                                               np.array([snapshot.heading[ego], planned.heading]), half)
         s[me], d[me], h[me] = s_c[0], d_c[0], h_c[0]
-        s1, d1, h1 = frame.centre_of_bumper(planned.x, planned.y, planned.heading, half)
         s0, d0, v0 = float(s[me]), float(d[me]), float(snapshot.speed[ego])
-        s1, d1, h1 = float(s1[0]), float(d1[0]), float(h1[0])
+        s1, d1, h1 = float(s_c[1]), float(d_c[1]), float(h_c[1])
         accel = (planned.speed - v0) / dt
         t_next = snapshot.time + dt
 
