@@ -191,3 +191,23 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path):
     assert not list(out.glob("**/.*.partial")) and not (out / ".batch.lock").exists()
     summary = read_batch_csv(out, "batch_summary")
     assert (summary.status == "ok").sum() >= 1 and set(summary.status) <= {"ok", "missing"}
+
+
+def test_a_batch_script_without_a_main_guard_fails_with_a_message_that_says_so(two_scenarios, tmp_path):
+    """Workers are spawned and import the script again: without the guard each one dies before its run starts,
+    and the failure says why instead of blaming SUMO."""
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "from pathlib import Path\n"
+        "from sumo_rss.batch.executors import LocalExecutor\n"
+        "from sumo_rss.batch.orchestrator import run_batch\n"
+        "from sumo_rss.batch.spec import load_batch\n"
+        f"tasks = load_batch(Path({str(two_scenarios / 'batch.toml')!r})).tasks()[:1]\n"
+        f"rows = run_batch(tasks, Path({str(tmp_path / 'out')!r}), LocalExecutor(workers=1), progress=False)\n"
+        "print('STATUS', rows.status.iloc[0], rows.error.iloc[0])\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+    status = [line for line in done.stdout.splitlines() if line.startswith("STATUS")]
+    assert status and status[0].startswith("STATUS failed"), done.stdout + done.stderr
+    assert 'if __name__ == "__main__":' in status[0] and "SUMO crashed" not in status[0]

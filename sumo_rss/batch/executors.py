@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
+from typing import Any
 
 from ..errors import SumoRssError
 from ..files import write_json
@@ -65,7 +66,8 @@ def _die_with_parent() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
 
 
-def _child(task: Task, out_dir: str) -> None:
+def _child(task: Task, out_dir: str, started: Any) -> None:
+    started.set()
     _die_with_parent()
     outcome = execute(task, out_dir)
     raise SystemExit(0 if outcome.status == "ok" else 1)
@@ -82,27 +84,28 @@ class LocalExecutor:
     def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
         ctx = mp.get_context("spawn")
         pending = deque(tasks)
-        running: dict[object, tuple[mp.process.BaseProcess, Task]] = {}
+        running: dict[object, tuple[mp.process.BaseProcess, Task, Any]] = {}
         try:
             while pending or running:
                 while pending and len(running) < self.workers:
                     task = pending.popleft()
-                    proc = ctx.Process(target=_child, args=(task, str(out_dir)), name=task.run_id)
+                    started = ctx.Event()  # set once the worker runs our code (after importing __main__)
+                    proc = ctx.Process(target=_child, args=(task, str(out_dir), started), name=task.run_id)
                     proc.start()
-                    running[proc.sentinel] = (proc, task)
+                    running[proc.sentinel] = (proc, task, started)
                 for sentinel in wait(list(running)):
-                    proc, task = running.pop(sentinel)
+                    proc, task, started = running.pop(sentinel)
                     proc.join()
-                    on_result(self._outcome(proc, task, out_dir))
+                    on_result(self._outcome(proc, task, out_dir, started.is_set()))
         except BaseException:
-            for proc, _ in running.values():
+            for proc, _, _ in running.values():
                 proc.kill()
-            for proc, _ in running.values():
+            for proc, _, _ in running.values():
                 proc.join()
             raise
 
     @staticmethod
-    def _outcome(proc: mp.process.BaseProcess, task: Task, out_dir: Path) -> Outcome:
+    def _outcome(proc: mp.process.BaseProcess, task: Task, out_dir: Path, started: bool) -> Outcome:
         if (run_directory(out_dir, task) / SUMMARY_FILE).is_file() and proc.exitcode == 0:
             return Outcome(task.run_id, "ok")
         if (failure_directory(out_dir, task) / FAILED_FILE).is_file():
@@ -110,6 +113,11 @@ class LocalExecutor:
                            json.loads((failure_directory(out_dir, task) / FAILED_FILE).read_text())["error"])
         how = f"killed by signal {-proc.exitcode}" if proc.exitcode and proc.exitcode < 0 else \
             f"exit code {proc.exitcode}"
+        if not started:  # it died importing the main module again, as spawned processes do
+            return record_failure(out_dir, task, f"worker process died ({how}) before it started the run: a script "
+                                  "that runs batches must start them under `if __name__ == \"__main__\":` (each "
+                                  "worker is a spawned process that imports the script again); see the worker's "
+                                  "error above", "")
         return record_failure(out_dir, task, f"worker process died ({how}); SUMO crashed?", "")
 
 
