@@ -175,7 +175,8 @@ class ResponsibilityTracker:
             t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx],
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
-            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]), same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES))
+            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
+            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES))
 
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""

@@ -19,7 +19,7 @@ from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .cost_weights import CostWeights
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult, hardest_braking
+from .forward_sim import LEADER_RANGE, SimResult, following_distance, hardest_braking
 from .lane_change import laterally_safe
 
 
@@ -138,14 +138,12 @@ def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_
     ego's IDM keeps the RSS safe distance where it exceeds the headway v·T, so the ego follows ~100 m back under
     ad_rss where EPSILON's IDM follows 20-30 m back, and the cost's 120 m range would rate a leader that holds
     the ego to its speed as hardly in the way (residual ratio at its 0.4 floor). The cost therefore reads the gap
-    as EPSILON's IDM would: less the RSS distance's excess over v·T (to the agent that brakes hardest, as the
-    simulation takes it; a leader's ``held_gap`` [m] in its place where shorter, as the simulation follows it)."""
+    as EPSILON's IDM would: less the excess over v·T of the distance the simulation keeps
+    (:func:`following_distance`, with the leader's ``held_gap`` [m])."""
     if rss_following_headway is None or rss_agents.lon_brake_max.size == 0:
         return gap
     led = np.isfinite(gap)
-    rss_distance = formulas.lon_safe_distance_same_dir(v, np.where(led, v_lead, v), rss_ego,
-                                                       hardest_braking(rss_agents))
-    following = np.minimum(rss_distance, held_gap)
+    following = following_distance(v, np.where(led, v_lead, v), rss_ego, hardest_braking(rss_agents), held_gap)
     return gap - np.where(led, np.maximum(following - rss_following_headway * v, 0.0), 0.0)
 
 

@@ -186,6 +186,13 @@ def hardest_braking(rss_agents: Any) -> Any:
     return rss_agents.take(np.array([int(np.argmax(rss_agents.lon_brake_max))]))
 
 
+def following_distance(v: Any, v_lead: Any, rss_ego: Any, front_worst: Any, held_gap: Any = np.inf) -> np.ndarray:
+    """[m] The least bumper gap the ego at ``v`` keeps behind a car at ``v_lead`` with ``SimSettings.rss_following``:
+    the RSS safe distance, taken at ``front_worst`` (:func:`hardest_braking`), or the car's ``held_gap`` (a car
+    that cut in: the gap it left, see :func:`simulate`) where that is shorter."""
+    return np.minimum(formulas.lon_safe_distance_same_dir(v, v_lead, rss_ego, front_worst), held_gap)
+
+
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
              ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None) -> SimResult:
@@ -319,12 +326,13 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
                                   gap_go[:, 0] == free_gaps[1, :, 0], np.zeros(ev.size, dtype=bool)])
             behind_car = (rows % n == 0) & car & ~free
-            following[behind_car] = formulas.lon_safe_distance_same_dir(v_rows[behind_car], v_leads[behind_car],
-                                                                        rss_ego, front_worst)
+            held = np.inf
             if holding:
                 lead_of_rows = np.concatenate([leader[0].ravel(), leader[1].ravel()[other], leader[1, :, 0],
                                                np.full(ev.size, n)])
-                following[behind_car] = np.minimum(following[behind_car], held_gap[lead_of_rows[behind_car]])
+                held = held_gap[lead_of_rows[behind_car]]
+            following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
+                                                       held)
         cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
                                 np.where(free, NO_LEADER_GAP + NO_LEADER_GAP * v_rows, gaps), IdmParams(*params), dt,
                                 following)
