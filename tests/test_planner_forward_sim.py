@@ -9,7 +9,7 @@ import pytest
 
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.cost_weights import CostWeights
-from sumo_rss.planner.behavior.evaluation import leader_gap_for_cost, rss_penalty
+from sumo_rss.planner.behavior.evaluation import breaks_lateral_response, leader_gap_for_cost, rss_penalty
 from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
@@ -324,6 +324,38 @@ def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
     penalty = rss_penalty(closer, frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8),
                           CostWeights())
     assert np.all(penalty[0, :onset] == 0.0) and np.all(penalty[0, onset:] > 0.0)
+
+
+def test_a_car_that_cuts_in_behind_an_ego_keeping_its_lane_is_not_charged_to_the_ego(highway):
+    """A 25 m/s car 20 m behind in the right lane changes into the lane of the 20 m/s ego (RSS's lateral trigger,
+    far inside the longitudinal distance). The ego keeps its lane, so it meets its lateral response and the
+    cut-in is the other car's duty (rss.md §5): no charge. The same car cutting in behind an ego that itself
+    moves towards it at 0.5 m/s (the ego is offset and heads into the right lane) is charged."""
+    _, frame = highway
+    p = RssParams()
+    params = RssParamArrays.stack([p] * 2)
+    vehicles = _vehicles([200.0, 200.0 - 4.5 - 20.0], [0.0, -3.5], [20.0, 25.0], chain=[CURRENT, RIGHT])
+    rollouts = Rollouts(np.full((1, 5), CURRENT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, CURRENT]]), np.array([0.0, 25.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, params)
+    assert _first_lateral_unsafe(sim, 1, p) is not None and np.all(sim.d[0, :, 0] == 0.0)
+    args = (frame, p, params.take(np.array([1])), np.full(2, 4.5), np.full(2, 1.8), CostWeights())
+    assert np.all(rss_penalty(sim, *args) == 0.0)
+    towards = replace(sim, heading=sim.heading - np.array([0.025, 0.0]))  # 20 m/s x sin(0.025) ≈ 0.5 m/s
+    assert np.any(rss_penalty(towards, *args) > 0.0)
+
+
+@pytest.mark.parametrize("towards, unsafe_until, breaks", [
+    (np.zeros(26), 5.0, False),  # keeps its lane
+    (np.full(26, 0.5), 5.0, True),  # goes on at 0.5 m/s: above 0.7 - 0.8(τ - 1) + 0.05τ from τ = 4/3 s
+    (np.full(26, 0.5), 1.2, False),  # ... but the pair is safe again before that
+    (np.maximum(0.5 - 0.8 * np.maximum(np.arange(26) * 0.2 - 1.0, 0.0), 0.0), 5.0, False),  # brakes at b_lat
+])
+def test_the_lateral_response_is_judged_as_the_auditor_does(towards, unsafe_until, breaks):
+    """ad_rss: ρ 1 s, a_lat 0.2, b_lat 0.8 m/s²; trigger at t = 0, samples every 0.2 s."""
+    t = np.arange(26) * 0.2
+    unsafe = (t <= unsafe_until + 1e-9)[None, :]
+    assert breaks_lateral_response(t, np.array([0]), towards[None, :], unsafe, RssParams()).tolist() == [breaks]
 
 
 def test_the_leader_cost_reads_the_gap_less_the_rss_distance_in_excess_of_the_idm_headway():

@@ -15,6 +15,7 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
+from ...rss.responsibility import EPS_ACCEL
 from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .cost_weights import CostWeights
@@ -58,9 +59,10 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
                                  across[..., 1:], rss_ego, rss_agents)
     front = ds >= 0.0
     # The ego is charged for every car ahead that it is laterally unsafe to (it is the rear car), and for a rear
-    # car from the sample it cuts in: it makes the pair laterally unsafe while it is longitudinally unsafe (RSS's
-    # lateral trigger). A rear car that becomes unsafe later, or was already beside or behind the ego in its lane
-    # at the start, is that car's duty (a longitudinal trigger). Speed bounds are computed for those pairs only.
+    # car from the sample it cuts in: the pair turns laterally unsafe while it is longitudinally unsafe (RSS's
+    # lateral trigger) and the ego breaks the lateral response it then owes (it goes on moving towards the car).
+    # A rear car that turns unsafe later, was already beside or behind the ego in its lane at the start, or cuts
+    # in behind an ego that keeps to its lane, is that car's duty. Speed bounds are computed for those pairs only.
     crossing = np.zeros_like(lat_unsafe)
     crossing[:, 1:] = lat_unsafe[:, 1:] & ~lat_unsafe[:, :-1] & ~front[:, 1:]
     cut_in = np.zeros_like(lat_unsafe)
@@ -68,7 +70,11 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
         r_idx, k_idx, a_idx = np.nonzero(crossing)
         gap_x = -ds[r_idx, k_idx, a_idx] - 0.5 * (length[0] + length[1:][a_idx])
         v_low_x = formulas.min_safe_speed_ahead(gap_x, v[r_idx, k_idx, a_idx + 1], rss_ego, rss_agents.take(a_idx))
-        cut_in[r_idx, k_idx, a_idx] = (gap_x < 0.0) | (v[r_idx, k_idx, 0] < v_low_x - 1e-6)
+        dangerous = (gap_x < 0.0) | (v[r_idx, k_idx, 0] < v_low_x - 1e-6)
+        ego_left = d[r_idx, :, 0] >= d[r_idx, :, a_idx + 1]  # [crossings, T+1]
+        towards = np.where(ego_left, -v_lat[r_idx, :, 0], v_lat[r_idx, :, 0])
+        breaks = breaks_lateral_response(sim.t, k_idx, towards, lat_unsafe[r_idx, :, a_idx], rss_ego)
+        cut_in[r_idx, k_idx, a_idx] = dangerous & breaks
         cut_in = np.logical_or.accumulate(cut_in, axis=1)
     charged = lat_unsafe & (front | cut_in)
     if cut_in_ahead is not None:
@@ -89,6 +95,22 @@ def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any,
     slow = w.rss_lack_coeff * v_e * 10.0 ** (w.rss_lack_power * np.minimum(np.abs(v_e - v_low), w.rss_max_excess))
     return np.bincount(sample, np.where(too_fast, fast, 0.0) + np.where(too_slow, slow, 0.0),
                        minlength=penalty.size).reshape(penalty.shape)
+
+
+def breaks_lateral_response(t: np.ndarray, onset: np.ndarray, towards: np.ndarray, lat_unsafe: np.ndarray,
+                             rss_ego: Any) -> np.ndarray:
+    """Per lateral trigger: whether the ego breaks the lateral response it owes (rss.md §5, judged as the
+    auditor does) while the pair stays laterally unsafe. ``t`` [T+1] sample times [s]; ``onset`` [C] the sample
+    of each trigger; ``towards`` [C, T+1] the ego's lateral speed towards the other car [m/s]; ``lat_unsafe``
+    [C, T+1]. The speed towards the other may grow by at most a_lat during ρ, must then fall at b_lat until it is
+    ≤ 0 and stay there (tolerance: the auditor's, integrated over the time since the trigger)."""
+    rows = np.arange(onset.size)
+    tau = t[None, :] - t[onset][:, None]  # [C, T+1] time since the trigger
+    u0 = towards[rows, onset][:, None]
+    rho = rss_ego.response_time
+    envelope = u0 + rss_ego.lat_accel_max * np.minimum(tau, rho) - rss_ego.lat_brake_min * np.maximum(tau - rho, 0.0)
+    still_unsafe = np.logical_and.accumulate(lat_unsafe | (tau < 0.0), axis=1) & (tau > 0.0)
+    return np.any(still_unsafe & (towards > np.maximum(envelope, 0.0) + EPS_ACCEL * tau), axis=1)
 
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,
