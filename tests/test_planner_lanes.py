@@ -31,6 +31,22 @@ def test_chains_follow_the_route_through_junctions():
     assert chains.reference_speed(CURRENT, 800.0, 200.0, desired=40.0) == 33.0
 
 
+def test_the_reference_speed_reads_the_limits_ahead_of_the_ego_not_behind_or_far_beyond_it():
+    """epsilon.md §2.7 scans from the ego's position. S_in_1 (13.89 m/s, 289.6 m) leads into the left turn's
+    junction lanes (9.26 m/s): 50 m along the approach the next 50 m allow floor(13.89) = 13 m/s; within 20 m of
+    the junction, floor(9.26) = 9 m/s. On the acceleration lane (33.33 m/s) the ramp behind it (22.22 m/s) no
+    longer caps an ego that wants 30 m/s."""
+    net = _net("intersection_tls")
+    chains = lane_chains(net, int(net.lane_indices(["S_in_1"])[0]), net.edge_indices(["S_in", "W_out"]))
+    assert chains.reference_speed(CURRENT, 50.0, 50.0, desired=13.89) == 13.0
+    assert chains.reference_speed(CURRENT, 270.0, 20.0, desired=13.89) == 9.0
+    net = _net("merge")
+    chains = lane_chains(net, int(net.lane_indices(["mw_merge_0"])[0]), net.edge_indices(["mw_merge", "mw_out"]))
+    assert str(net.lane_ids[chains.lanes[chains.chain_of[CURRENT]][0]]) == "ramp_0"  # the ramp is in the chain
+    assert chains.reference_speed(CURRENT, 100.0, 100.0, desired=30.0) == 30.0
+    assert chains.reference_speed(CURRENT, -100.0, 50.0, desired=30.0) == 22.0  # on the ramp
+
+
 def test_acceleration_lane_chain_ends_and_has_no_right_neighbour():
     net = _net("merge")
     lane = int(net.lane_indices(["mw_merge_0"])[0])

@@ -135,7 +135,7 @@ class EpsilonPlanner:
         key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
-        v_ref = self._reference_speed(frame, v_ego)
+        v_ref = self._reference_speed(frame, float(vehicles.s[0]), v_ego)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane)
@@ -291,9 +291,10 @@ class EpsilonPlanner:
             return None
         return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
 
-    def _reference_speed(self, frame: RoadFrame, v: float) -> float:
+    def _reference_speed(self, frame: RoadFrame, s_ego: float, v: float) -> float:
+        """epsilon.md §2.7: the reference speed over max(20, v²/1.67) m ahead of the ego's centre at ``s_ego``."""
         horizon = max(20.0, v * v / 1.67)
-        return frame.chains.reference_speed(CURRENT, 0.0, horizon, self.config.desired_speed)
+        return frame.chains.reference_speed(CURRENT, s_ego, horizon, self.config.desired_speed)
 
     def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
         """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane

@@ -19,7 +19,8 @@ class LaneChains:
 
     ``shapes`` holds the chains that exist, ``chain_of[RIGHT|CURRENT|LEFT]`` their row in it (-1 if absent),
     ``lanes[c]`` the lane indices of chain c, ``start_s[c]`` where the ego's own lane starts along chain c [m],
-    ``speed_limit[c]`` the lowest limit along it [m/s], ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's last lane ends for good
+    ``lane_start[c]`` where each of its lanes starts (s as in :meth:`project`) and ``lane_speed[c]`` their speed
+    limits [m/s], ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's last lane ends for good
     (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
     A neighbour chain starts beside the first lane along the ego's chain that has such a neighbour, so the
     motorway beside an on-ramp is known before the ego reaches it.
@@ -29,7 +30,8 @@ class LaneChains:
     chain_of: np.ndarray  # [3]
     lanes: tuple[tuple[int, ...], ...]
     start_s: np.ndarray
-    speed_limit: np.ndarray
+    lane_start: tuple[np.ndarray, ...]
+    lane_speed: tuple[np.ndarray, ...]
     width: np.ndarray
     dead_end: np.ndarray
 
@@ -43,7 +45,8 @@ class LaneChains:
         return s - self.start_s[row], d
 
     def reference_speed(self, which: int, s_from: float, horizon: float, desired: float) -> float:
-        """floor(min(desired, speed limit, √(a_lat/|κ|) over [s_from, s_from + horizon])) [m/s]."""
+        """floor(min(desired, speed limits, √(a_lat/|κ|))) over [s_from, s_from + horizon] of chain ``which``
+        (s as in :meth:`project`) [m/s]: the lanes' limits and the curvature ahead of s_from, not behind it."""
         row = int(self.chain_of[which])
         n = int(self.shapes.count[row])
         pts, cum = self.shapes.points[row, :n], self.shapes.cumulative[row, :n]
@@ -52,7 +55,11 @@ class LaneChains:
         kappa = np.abs(np.gradient(heading, seg_mid)) if len(heading) > 1 else np.zeros(1)
         window = (seg_mid >= s_from - 1.0) & (seg_mid <= s_from + horizon)
         v_curve = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[window], 1e-9)).min(initial=np.inf)
-        return float(np.floor(min(desired, self.speed_limit[row], v_curve)))
+        starts = self.lane_start[row]
+        ends = np.append(starts[1:], cum[n - 1] - self.start_s[row])
+        in_window = (starts < s_from + horizon) & (ends > s_from)
+        v_limit = self.lane_speed[row][in_window].min(initial=np.inf)
+        return float(np.floor(min(desired, v_limit, v_curve)))
 
 
 def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: float = 250.0,
@@ -66,7 +73,8 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
     route_set = set(int(e) for e in route if e >= 0)
     own_ahead = _walk(network, lane, network.lane_successors, route_set, forward, own=True)
     starts = [_first_neighbour(network.lane_right, own_ahead), lane, _first_neighbour(network.lane_left, own_ahead)]
-    chains, chain_of, start_s, limits, widths, polylines, dead_end = [], np.full(3, -1), [], [], [], [], []
+    chains, chain_of, start_s, lane_start, lane_speed, widths, polylines, dead_end = [], np.full(3, -1), [], [], [], \
+        [], [], []
     for which, first in enumerate(starts):
         if first < 0:
             continue
@@ -83,12 +91,14 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         chain_of[which] = len(chains)
         chains.append(chain)
         start_s.append(offset)
-        limits.append(float(network.lane_speed[list(chain)].min()))
+        lengths = network.shapes.cumulative[list(chain), network.shapes.count[list(chain)] - 1]
+        lane_start.append(np.concatenate([[0.0], np.cumsum(lengths[:-1])]) - offset)
+        lane_speed.append(network.lane_speed[list(chain)].astype(float))
         widths.append(float(network.lane_width[list(chain)].min()))
         polylines.append(np.asarray(pts, dtype=float))
         dead_end.append(bool(network.lane_ends[chain[-1]]))
     return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
-                      np.array(limits), np.array(widths), np.array(dead_end, dtype=bool))
+                      tuple(lane_start), tuple(lane_speed), np.array(widths), np.array(dead_end, dtype=bool))
 
 
 def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:

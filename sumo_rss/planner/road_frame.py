@@ -40,7 +40,6 @@ class RoadFrame:
     extent: np.ndarray  # [3, 2] (first, last) s of each chain in the frame
     end_s: np.ndarray  # [3]
     exists: np.ndarray  # [3] bool
-    speed_limit: np.ndarray  # [3] m/s
     lane_width: np.ndarray  # [3] m
     slope_grid: np.ndarray  # [3, G-1] heading [rad] of each chain's centre line between grid points
 
@@ -55,14 +54,12 @@ class RoadFrame:
         extent = np.tile([s_first, s_last], (3, 1)).astype(float)
         end_s = np.full(3, np.inf)
         exists = np.zeros(3, dtype=bool)
-        limits = np.full(3, float(chains.speed_limit[cur]))
         widths = np.full(3, float(chains.width[cur]))
         for which in range(3):
             row = int(chains.chain_of[which])
             if row < 0:
                 continue
             exists[which] = True
-            limits[which] = float(chains.speed_limit[row])
             widths[which] = float(chains.width[row])
             n = int(shapes.count[row])
             length = float(shapes.cumulative[row, n - 1])
@@ -79,7 +76,7 @@ class RoadFrame:
             extent[which] = (s[0], s[-1])
             if chains.dead_end[row]:
                 end_s[which] = s[-1]
-        return cls(chains, float(grid[0]), centre, extent, end_s, exists, limits, widths,
+        return cls(chains, float(grid[0]), centre, extent, end_s, exists, widths,
                    np.arctan(np.diff(centre, axis=1) / GRID_STEP))
 
     def centre_d(self, chain: Any, s: Any) -> np.ndarray:
