@@ -78,3 +78,22 @@ def test_an_agent_near_the_end_of_the_acceleration_lane_is_expected_to_merge(est
     np.testing.assert_allclose(probs[:2].sum(axis=1), 1.0)
     assert probs[0, 1] > 0.9  # left: onto the motorway
     assert probs[0, 2] == 0.0  # there is no lane to the right
+
+
+def test_the_network_is_used_where_the_turns_are_within_reach_as_in_its_training_data(estimator):
+    """On intersection_tls, S_in_0 (straight and right, 289.6 m) has one way ahead for a car 250 m before the
+    junction: its candidates (to 128 m ahead) cannot tell the turns apart, so the network, trained only where
+    they can, is not asked and the rules stay. 60 m before the junction the turns are within reach."""
+    net = _net("intersection_tls")
+    k = int(net.lane_indices(np.array(["S_in_0"]))[0])
+    a, b = net.shapes.points[k, 0], net.shapes.points[k, net.shapes.count[k] - 1]
+    u = (b - a) / np.linalg.norm(b - a)
+    length = float(net.lane_length[k])
+    xs, ys = zip(*(a + s * u for s in (length - 250.0, length - 60.0)))
+    heading = float(np.arctan2(u[1], u[0]))
+    snap = _snapshot(10.0, ["far", "near"], xs, ys, [heading] * 2, [13.0, 13.0], ["S_in_0"] * 2, [0, 0])
+    belief = LearnedBelief(net, estimator)
+    belief.observe(snap)
+    probs, used = belief.lateral_probabilities(snap, np.arange(2), net.lane_indices(np.array(["S_in_0"] * 2)))
+    assert used.tolist() == [False, True]
+    np.testing.assert_allclose(probs[1].sum(), 1.0)

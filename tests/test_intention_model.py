@@ -11,7 +11,8 @@ import torch
 
 from sumo_rss.planner.intention import dataset, estimator
 from sumo_rss.planner.intention.estimator import SHIPPED_WEIGHTS, load_estimator, save_weights
-from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS, MAX_CANDIDATES
+from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS, MAX_CANDIDATES, \
+    lanes_branch
 from sumo_rss.planner.intention.model import ARCHITECTURE, IntentionNet, nll_loss
 from sumo_rss.planner.intention.train import TrainSettings, evaluate, predict, rule_probabilities, train
 from sumo_rss.scenario import load_scenario
@@ -72,7 +73,7 @@ def test_recording_gives_labelled_samples_where_lanes_branch_and_is_deterministi
     assert set(data["family"].tolist()) == {"merge"}
     assert np.all(data["mask"][np.arange(n), data["label"]])  # the label is a real candidate
     assert np.all(data["mask"].sum(axis=1) >= 2)
-    assert np.all(dataset.lanes_branch(data["lateral"], data["mask"], data["to_lane_end"]))
+    assert np.all(lanes_branch(data["lateral"], data["mask"], data["to_lane_end"]))
     assert np.all(data["history"][:, -1, :2] == 0.0)  # the agent frame's origin is the agent now
     assert {0, 1} <= set(data["label"].tolist())  # some stay on the acceleration lane a while, some merge
     spec = dataclasses.replace(load_scenario(SCENARIOS / "merge_onramp.toml"), ego=None)

@@ -3,8 +3,9 @@ P(candidate) summed per lateral class (keep / left / right, cfb.INTENTIONS order
 
 ``LearnedBelief`` remembers each vehicle's recent positions (one entry per planning call) for the network's
 past-trajectory input; a vehicle seen for less than the history span gets the missing past extrapolated
-backwards at its current speed and heading. Only agents whose own lane branches ahead (a junction approach with
-several turns) or ends (an acceleration lane) are given to the network; everywhere else the rules stay.
+backwards at its current speed and heading. Only agents whose own lane branches within the candidates' range (a
+junction approach with several turns) or ends (an acceleration lane) are given to the network, as in its
+training data; everywhere else the rules stay.
 """
 from __future__ import annotations
 
@@ -61,7 +62,8 @@ class LearnedBelief:
     def lateral_probabilities(self, snapshot: WorldSnapshot, rows: np.ndarray,
                               lanes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(P(keep, left, right) [n, 3], used [n] bool) for snapshot ``rows`` on ``lanes``; ``used`` is False for
-        the agents left to the rules (no branching lane, or a single candidate)."""
+        the agents left to the rules (no branching lane, no branch within the candidates' range, or a single
+        candidate)."""
         probs = np.zeros((rows.size, 3))
         used = np.array([self.branches(int(k)) for k in lanes], dtype=bool)
         if not used.any():
@@ -73,7 +75,9 @@ class LearnedBelief:
         p = self.estimator.probabilities(history_in_agent_frame(past_x, past_y, past_signals, x, y, heading), cand)
         for cls in range(3):
             probs[used, cls] = np.sum(np.where(cand.lateral == cls, p, 0.0), axis=1)
-        used[used] = cand.mask.sum(axis=1) > 1
+        # As in training: several candidates, and several ways ahead within the candidates' range or a lane end.
+        # Far before a junction the turns still coincide; the network has not seen such samples.
+        used[used] = (cand.mask.sum(axis=1) > 1) & cand.branching()
         return probs, used
 
     def _history(self, snapshot: WorldSnapshot, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -5,7 +5,7 @@ each vehicle with ``HISTORY_STEPS`` of past and ``FUTURE`` seconds of future on 
 past trajectory and candidate centrelines (features.py) and, as label, the candidate nearest to where it
 actually is ``FUTURE`` seconds later. Samples with a single candidate, or whose nearest two candidates are within
 ``SAME_PATH_M`` of that point (not yet decided), are left out. By default only the samples where lanes branch are
-kept (:func:`lanes_branch`: where CFB uses the network; elsewhere it keeps the rules). Deterministic given
+kept (:func:`~.features.lanes_branch`: where CFB uses the network; elsewhere it keeps the rules). Deterministic given
 scenario and seed (SUMO's seed); saved as compressed numpy arrays.
 """
 from __future__ import annotations
@@ -20,8 +20,8 @@ import numpy as np
 from ...files import atomic_path
 from ...road.network import RoadNetwork
 from ...scenario import ScenarioSpec, load_scenario
-from .features import (HISTORY_DT, HISTORY_FEATURES, HISTORY_STEPS, KEEP, LANE_POINTS, MAX_CANDIDATES,
-                       SAME_PATH_M, CandidateFinder, Candidates, distance_to_candidates, history_in_agent_frame)
+from .features import (HISTORY_DT, HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS, MAX_CANDIDATES, SAME_PATH_M,
+                       CandidateFinder, distance_to_candidates, history_in_agent_frame)
 
 SAMPLE_EVERY = 0.5  # [s]
 FUTURE = 3.0  # [s] the label is the candidate followed this much later
@@ -35,16 +35,6 @@ ARRAYS = ("history", "lanes", "mask", "lateral", "label", "offset", "lat_speed",
 def family_of(network: str) -> str:
     """Scenario family of a network name ('intersection', 'merge', 'highway')."""
     return FAMILIES.get(network, network)
-
-
-def lanes_branch(lateral: np.ndarray, mask: np.ndarray, to_lane_end: np.ndarray) -> np.ndarray:
-    """[n] bool: the agent's own lane has several ways ahead in range (a junction approach) or ends (an
-    acceleration lane); ``lateral``/``mask`` [n, C] and ``to_lane_end`` [n] as in :class:`Candidates`."""
-    return (np.sum(mask & (lateral == KEEP), axis=1) > 1) | np.isfinite(to_lane_end)
-
-
-def branching(cand: Candidates) -> np.ndarray:
-    return lanes_branch(cand.lateral, cand.mask, cand.to_lane_end)
 
 
 def record_run(spec: ScenarioSpec, all_samples: bool = False) -> dict[str, np.ndarray]:
@@ -93,7 +83,7 @@ def samples_from_steps(network: RoadNetwork, steps: list, step_s: float, scenari
     order = np.sort(dist, axis=1)
     label = np.argmin(dist, axis=1)
     decided = (cand.mask.sum(axis=1) >= 2) & (order[:, 0] <= OFF_ROAD_M) & (order[:, 1] - order[:, 0] >= SAME_PATH_M)
-    keep = np.flatnonzero(decided & (all_samples | branching(cand)))
+    keep = np.flatnonzero(decided & (all_samples | cand.branching()))
     veh, t = veh[keep], t[keep]
     hist_t = t[:, None] + past[None, :]
     history = history_in_agent_frame(x[veh[:, None], hist_t], y[veh[:, None], hist_t],

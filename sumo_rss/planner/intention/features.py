@@ -42,6 +42,17 @@ class Candidates:
     world: np.ndarray  # [n, C, LANE_POINTS, 2] the same points in world coordinates [m] (for labelling)
     to_lane_end: np.ndarray  # [n] [m] ahead to where the agent's own lane ends for good (inf: it goes on)
 
+    def branching(self) -> np.ndarray:
+        """[n] bool: where the intention network applies (:func:`lanes_branch`)."""
+        return lanes_branch(self.lateral, self.mask, self.to_lane_end)
+
+
+def lanes_branch(lateral: np.ndarray, mask: np.ndarray, to_lane_end: np.ndarray) -> np.ndarray:
+    """[n] bool: the agent's own lane has several ways ahead in range (a junction approach) or ends (an
+    acceleration lane); ``lateral``/``mask`` [n, C] and ``to_lane_end`` [n] as in :class:`Candidates`. The
+    network is trained on these samples only, and used on them only."""
+    return (np.sum(mask & (lateral == KEEP), axis=1) > 1) | np.isfinite(to_lane_end)
+
 
 def to_agent_frame(px: np.ndarray, py: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
     """Points (px, py) [m], shaped [n, ...], in the frames of n agents at (x, y, heading) → [n, ..., 2]."""
