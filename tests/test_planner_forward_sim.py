@@ -303,6 +303,38 @@ def test_the_evasive_speed_up_accelerates_beyond_the_comfort_limit_only_before_a
         assert peak <= settings.ego_limits.max_accel + 1e-9 and sim.speed[0, -1, 0] <= 20.0 + 1e-9
 
 
+def _evasive(frame, speed_limit=np.inf, leader_gap=None):
+    """The ego at 20 m/s changes left before a 30 m/s car 100 m behind in the target lane (RSS-unsafe: the
+    evasive speed-up applies); optionally a 20 m/s car ``leader_gap`` m ahead in the ego's lane."""
+    p = RssParams()
+    s, d, v, chain = [200.0, 200.0 - 4.5 - 100.0], [0.0, 3.5], [20.0, 30.0], [CURRENT, LEFT]
+    if leader_gap is not None:
+        s, d, v, chain = s + [200.0 + 4.5 + leader_gap], d + [0.0], v + [20.0], chain + [CURRENT]
+    n = len(s)
+    vehicles = replace(_vehicles(s, d, v, chain=chain), heading=np.array([0.05] + [0.0] * (n - 1)))
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([chain]), np.array([0.0] + v[1:]), speed_limit)
+    return simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * n)), p
+
+
+def test_the_evasive_speed_up_stays_within_the_speed_limit(highway):
+    _, frame = highway
+    free, _ = _evasive(frame)
+    assert free.speed[0, :, 0].max() > 22.0  # v_low + 10 m/s is far above 22 m/s
+    capped, _ = _evasive(frame, speed_limit=22.0)
+    assert capped.speed[0, :, 0].max() <= 22.0
+
+
+def test_the_evasive_speed_up_keeps_the_rss_distance_to_the_leader_in_the_ego_lane(highway):
+    """A leader 5 m beyond the RSS distance (ad_rss, 20/20 m/s: 65.78 m): speeding up with IDM's evasive 0.6 s
+    headway alone took the ego 15.6 m inside it; the RSS floor of the following distance holds."""
+    _, frame = highway
+    need = formulas.lon_safe_distance_same_dir(20.0, 20.0, RssParams(), RssParams())
+    sim, p = _evasive(frame, leader_gap=float(need) + 5.0)
+    gap = sim.s[0, :, 2] - sim.s[0, :, 0] - 4.5
+    assert np.all(gap > formulas.lon_safe_distance_same_dir(sim.speed[0, :, 0], sim.speed[0, :, 2], p, p))
+
+
 def test_a_lawful_cut_in_is_not_charged_when_the_rear_car_closes_in(highway):
     _, frame = highway
     p = RssParams()

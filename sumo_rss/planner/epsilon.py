@@ -292,9 +292,8 @@ class EpsilonPlanner:
         return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
 
     def _reference_speed(self, frame: RoadFrame, s_ego: float, v: float) -> float:
-        """epsilon.md §2.7: the reference speed over max(20, v²/1.67) m ahead of the ego's centre at ``s_ego``."""
-        horizon = max(20.0, v * v / 1.67)
-        return frame.chains.reference_speed(CURRENT, s_ego, horizon, self.config.desired_speed)
+        """epsilon.md §2.7: the reference speed over :func:`_speed_reach` ahead of the ego's centre at ``s_ego``."""
+        return frame.chains.reference_speed(CURRENT, s_ego, _speed_reach(v), self.config.desired_speed)
 
     def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
         """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane
@@ -368,7 +367,8 @@ class EpsilonPlanner:
         agent_v0 = np.concatenate([[0.0], np.where(a >= 0.0, v, np.maximum(0.0, v + a * horizon))])
         ego_params = self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))
         backup_brake = min(ego_params.lon_brake_min + 0.2, cfg.sim.ego_limits.hard_brake)
-        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0)
+        limit = frame.chains.speed_limit(CURRENT, float(vehicles.s[0]), _speed_reach(v_ego))
+        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit)
         return rollouts, policy_of, scenarios.weights[scenario_of]
 
     @staticmethod
@@ -399,6 +399,11 @@ class EpsilonPlanner:
         agents = (sim.s[r, :, 1:], sim.d[r, :, 1:], sim.heading[r, :, 1:], vehicles.length[1:], vehicles.width[1:])
         return MotionInput(frame, now, sim.t, ego, float(vehicles.length[0]), float(vehicles.width[0]), agents,
                            float(vehicles.s[0]) + stop_distance)
+
+
+def _speed_reach(v: float) -> float:
+    """[m] How far ahead the ego's speed is planned from (epsilon.md §2.7): max(20, v²/1.67) at ``v`` [m/s]."""
+    return max(20.0, v * v / 1.67)
 
 
 def _target(lat: Lat) -> int:

@@ -55,11 +55,15 @@ class LaneChains:
         kappa = np.abs(np.gradient(heading, seg_mid)) if len(heading) > 1 else np.zeros(1)
         window = (seg_mid >= s_from - 1.0) & (seg_mid <= s_from + horizon)
         v_curve = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[window], 1e-9)).min(initial=np.inf)
+        return float(np.floor(min(desired, self.speed_limit(which, s_from, horizon), v_curve)))
+
+    def speed_limit(self, which: int, s_from: float, horizon: float) -> float:
+        """The lowest speed limit [m/s] of chain ``which``'s lanes over [s_from, s_from + horizon] (inf: none)."""
+        row = int(self.chain_of[which])
         starts = self.lane_start[row]
-        ends = np.append(starts[1:], cum[n - 1] - self.start_s[row])
+        ends = np.append(starts[1:], self.shapes.cumulative[row, int(self.shapes.count[row]) - 1] - self.start_s[row])
         in_window = (starts < s_from + horizon) & (ends > s_from)
-        v_limit = self.lane_speed[row][in_window].min(initial=np.inf)
-        return float(np.floor(min(desired, v_limit, v_curve)))
+        return float(self.lane_speed[row][in_window].min(initial=np.inf))
 
 
 def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: float = 250.0,

@@ -82,7 +82,8 @@ class Rollouts:
     """What differs between rollouts. ``ego_chain[r, layer]``: the lane the ego tracks in each layer;
     ``ego_v0[r]`` its desired speed, ``ego_spacing_scale[r]`` the factor on its s0 and T (0.75 when
     accelerating); ``ego_backup[r]``: the emergency backup (lane keep, braking at ``backup_brake``);
-    ``agent_chain[r, i]`` each agent's target lane, ``agent_v0[i]`` its desired speed."""
+    ``agent_chain[r, i]`` each agent's target lane, ``agent_v0[i]`` its desired speed; ``ego_speed_limit`` the
+    road's speed limit [m/s], which the evasive speed-up does not exceed."""
 
     ego_chain: np.ndarray  # [R, layers] int
     ego_v0: np.ndarray  # [R]
@@ -91,6 +92,7 @@ class Rollouts:
     backup_brake: float
     agent_chain: np.ndarray  # [R, n] int (column 0 unused)
     agent_v0: np.ndarray  # [n]
+    ego_speed_limit: float = np.inf
 
 
 @dataclass(frozen=True, eq=False)
@@ -302,6 +304,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             barrier &= np.abs(d[:, 0] - centres.ravel().take(tracked_cells[:, 0])) >= ego_band
             hold = changing & barrier
             evasive = changing & np.isfinite(evasive_v0)
+            evasive_v0 = np.minimum(evasive_v0, rollouts.ego_speed_limit)  # into the gap, within the speed limit
         ev = np.flatnonzero(evasive)
         # The leaders in one IDM call: on the tracked lane; on the current lane where that is another lane (a car
         # changing lanes; elsewhere the two are the same); the ego's 'going' leader; and, where the ego speeds up
@@ -322,14 +325,16 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             params[_IDM_FIELDS.index("headway"), -ev.size:] = settings.evasive_headway
             params[_IDM_FIELDS.index("accel"), -ev.size:] = settings.evasive_accel
         following = np.zeros(rows.size)
-        if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance
+        if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance,
+            # also while it speeds up evasively (it may close in to T = 0.6 s, not into its leader's RSS distance)
+            car_go = gap_go[:, 0] == free_gaps[1, :, 0]
             car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
-                                  gap_go[:, 0] == free_gaps[1, :, 0], np.zeros(ev.size, dtype=bool)])
+                                  car_go, np.where(hold, gap_c[:, 0] == free_gaps[1, :, 0], car_go)[ev]])
             behind_car = (rows % n == 0) & car & ~free
             held = np.inf
             if holding:
                 lead_of_rows = np.concatenate([leader[0].ravel(), leader[1].ravel()[other], leader[1, :, 0],
-                                               np.full(ev.size, n)])
+                                               leader[1, ev, 0]])
                 held = held_gap[lead_of_rows[behind_car]]
             following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
                                                        held)
