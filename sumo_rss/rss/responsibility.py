@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any
 
 import numpy as np
 
@@ -113,6 +114,13 @@ class OwedResponses:
         """The cars going this car's way that it owes no longitudinal braking in an open episode: the episode did
         not start longitudinally for it (e.g. the other car cut in), so closing the gap is not its duty."""
         return frozenset(self.other_id[self.same_direction & ~self.must_brake].tolist())
+
+
+def lateral_speed_bound(u0: Any, tau: Any, rho: Any, a_lat: Any, b_lat: Any) -> np.ndarray:
+    """The lateral response's bound on a car's speed towards the other [m/s], ``tau`` s after the trigger at
+    which it was ``u0`` (rss.md §5): it may grow at a_lat during ρ, must then fall at b_lat to ≤ 0 and stay there
+    (never asked below 0)."""
+    return np.maximum(u0 + a_lat * np.minimum(tau, rho) - b_lat * np.maximum(tau - rho, 0.0), 0.0)
 
 
 class ResponsibilityTracker:
@@ -264,10 +272,9 @@ class ResponsibilityTracker:
         actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
         left = np.column_stack([e.a_left, ~e.a_left])
         u = np.where(left, -v_lat, v_lat)
-        envelope = e.u0 + p.lat_accel_max[cars] * np.minimum(tau, rho) - \
-            p.lat_brake_min[cars] * np.maximum(tau - rho, 0.0)
         applies[..., 3] = e.owed_lat[:, None]
-        actual[..., 3], bound[..., 3] = u, np.maximum(envelope, 0.0)
+        actual[..., 3] = u
+        bound[..., 3] = lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars])
         tolerance = np.full(actual.shape, EPS_ACCEL)
         tolerance[..., 3] = EPS_ACCEL * tau  # a velocity envelope: the acceleration tolerance, integrated
         excess = sign * (actual - bound)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
-from ...rss.responsibility import EPS_ACCEL
+from ...rss.responsibility import EPS_ACCEL, lateral_speed_bound
 from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .cost_weights import CostWeights
@@ -104,13 +104,11 @@ def breaks_lateral_response(t: np.ndarray, onset: np.ndarray, towards: np.ndarra
     of each trigger; ``towards`` [C, T+1] the ego's lateral speed towards the other car [m/s]; ``lat_unsafe``
     [C, T+1]. The speed towards the other may grow by at most a_lat during ρ, must then fall at b_lat until it is
     ≤ 0 and stay there (tolerance: the auditor's, integrated over the time since the trigger)."""
-    rows = np.arange(onset.size)
     tau = t[None, :] - t[onset][:, None]  # [C, T+1] time since the trigger
-    u0 = towards[rows, onset][:, None]
-    rho = rss_ego.response_time
-    envelope = u0 + rss_ego.lat_accel_max * np.minimum(tau, rho) - rss_ego.lat_brake_min * np.maximum(tau - rho, 0.0)
+    u0 = towards[np.arange(onset.size), onset][:, None]
+    bound = lateral_speed_bound(u0, tau, rss_ego.response_time, rss_ego.lat_accel_max, rss_ego.lat_brake_min)
     still_unsafe = np.logical_and.accumulate(lat_unsafe | (tau < 0.0), axis=1) & (tau > 0.0)
-    return np.any(still_unsafe & (towards > np.maximum(envelope, 0.0) + EPS_ACCEL * tau), axis=1)
+    return np.any(still_unsafe & (towards > bound + EPS_ACCEL * tau), axis=1)
 
 
 def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of: np.ndarray, weight_of: np.ndarray,
