@@ -40,6 +40,9 @@ def test_the_reference_speed_reads_the_limits_ahead_of_the_ego_not_behind_or_far
     chains = lane_chains(net, int(net.lane_indices(["S_in_1"])[0]), net.edge_indices(["S_in", "W_out"]))
     assert chains.reference_speed(CURRENT, 50.0, 50.0, desired=13.89) == 13.0
     assert chains.reference_speed(CURRENT, 270.0, 20.0, desired=13.89) == 9.0
+    # In the turn (90° in 19.3 m; 0.111 1/m through SUMO's middle three samples): floor(√(1.2/0.111)) = 3 m/s.
+    # The heading gradient read 0.155 1/m where SUMO splits the turn in two internal lanes, i.e. 2 m/s.
+    assert chains.reference_speed(CURRENT, 290.0, 20.0, desired=13.89) == 3.0
     net = _net("merge")
     chains = lane_chains(net, int(net.lane_indices(["mw_merge_0"])[0]), net.edge_indices(["mw_merge", "mw_out"]))
     assert str(net.lane_ids[chains.lanes[chains.chain_of[CURRENT]][0]]) == "ramp_0"  # the ramp is in the chain

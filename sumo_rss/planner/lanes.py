@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..road.curvature import vertex_curvature
 from ..road.frenet import LaneShapes
 from ..road.network import RoadNetwork
 
@@ -20,8 +21,9 @@ class LaneChains:
     ``shapes`` holds the chains that exist, ``chain_of[RIGHT|CURRENT|LEFT]`` their row in it (-1 if absent),
     ``lanes[c]`` the lane indices of chain c, ``start_s[c]`` where the ego's own lane starts along chain c [m],
     ``lane_start[c]`` where each of its lanes starts (s as in :meth:`project`) and ``lane_speed[c]`` their speed
-    limits [m/s], ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's last lane ends for good
-    (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
+    limits [m/s], ``curve_s[c]`` / ``curve_kappa[c]`` where chain c bends (s as in :meth:`project`) and how
+    sharply (|κ| [1/m], road/curvature.py), ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's
+    last lane ends for good (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
     A neighbour chain starts beside the first lane along the ego's chain that has such a neighbour, so the
     motorway beside an on-ramp is known before the ego reaches it.
     """
@@ -32,6 +34,8 @@ class LaneChains:
     start_s: np.ndarray
     lane_start: tuple[np.ndarray, ...]
     lane_speed: tuple[np.ndarray, ...]
+    curve_s: tuple[np.ndarray, ...]
+    curve_kappa: tuple[np.ndarray, ...]
     width: np.ndarray
     dead_end: np.ndarray
 
@@ -48,12 +52,8 @@ class LaneChains:
         """floor(min(desired, speed limits, √(a_lat/|κ|))) over [s_from, s_from + horizon] of chain ``which``
         (s as in :meth:`project`) [m/s]: the lanes' limits and the curvature ahead of s_from, not behind it."""
         row = int(self.chain_of[which])
-        n = int(self.shapes.count[row])
-        pts, cum = self.shapes.points[row, :n], self.shapes.cumulative[row, :n]
-        heading = np.unwrap(np.arctan2(np.diff(pts[:, 1]), np.diff(pts[:, 0])))
-        seg_mid = 0.5 * (cum[1:] + cum[:-1]) - self.start_s[row]
-        kappa = np.abs(np.gradient(heading, seg_mid)) if len(heading) > 1 else np.zeros(1)
-        window = (seg_mid >= s_from - 1.0) & (seg_mid <= s_from + horizon)
+        s, kappa = self.curve_s[row], self.curve_kappa[row]
+        window = (s >= s_from - 1.0) & (s <= s_from + horizon)
         v_curve = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[window], 1e-9)).min(initial=np.inf)
         return float(np.floor(min(desired, self.speed_limit(which, s_from, horizon), v_curve)))
 
@@ -77,8 +77,8 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
     route_set = set(int(e) for e in route if e >= 0)
     own_ahead = _walk(network, lane, network.lane_successors, route_set, forward, own=True)
     starts = [_first_neighbour(network.lane_right, own_ahead), lane, _first_neighbour(network.lane_left, own_ahead)]
-    chains, chain_of, start_s, lane_start, lane_speed, widths, polylines, dead_end = [], np.full(3, -1), [], [], [], \
-        [], [], []
+    chains, chain_of, start_s, lane_start, lane_speed, curve_s, curve_kappa, widths, polylines, dead_end = \
+        [], np.full(3, -1), [], [], [], [], [], [], [], []
     for which, first in enumerate(starts):
         if first < 0:
             continue
@@ -101,8 +101,14 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         widths.append(float(network.lane_width[list(chain)].min()))
         polylines.append(np.asarray(pts, dtype=float))
         dead_end.append(bool(network.lane_ends[chain[-1]]))
-    return LaneChains(LaneShapes.from_polylines(polylines), chain_of, tuple(chains), np.array(start_s),
-                      tuple(lane_start), tuple(lane_speed), np.array(widths), np.array(dead_end, dtype=bool))
+    shapes = LaneShapes.from_polylines(polylines)
+    for row, offset in enumerate(start_s):
+        n = int(shapes.count[row])
+        bend_s, kappa = vertex_curvature(shapes.points[row, :n], shapes.cumulative[row, :n])
+        curve_s.append(bend_s - offset)
+        curve_kappa.append(kappa)
+    return LaneChains(shapes, chain_of, tuple(chains), np.array(start_s), tuple(lane_start), tuple(lane_speed),
+                      tuple(curve_s), tuple(curve_kappa), np.array(widths), np.array(dead_end, dtype=bool))
 
 
 def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:
