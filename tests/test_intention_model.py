@@ -11,11 +11,12 @@ import torch
 
 from sumo_rss.planner.intention import dataset, estimator
 from sumo_rss.planner.intention.estimator import SHIPPED_WEIGHTS, load_estimator, save_weights
-from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS, MAX_CANDIDATES, \
-    lanes_branch
+from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, KEEP, LANE_POINTS, \
+    MAX_CANDIDATES, lanes_branch
 from sumo_rss.planner.intention.model import ARCHITECTURE, IntentionNet, nll_loss
 from sumo_rss.planner.intention.train import TrainSettings, evaluate, predict, rule_probabilities, train
-from sumo_rss.scenario import load_scenario
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.scenario import load_scenario, networks_root
 
 from conftest import SCENARIOS
 
@@ -68,17 +69,35 @@ def merge_samples() -> dict[str, np.ndarray]:
 
 def test_recording_gives_labelled_samples_where_lanes_branch_and_is_deterministic(merge_samples):
     data = merge_samples
-    n = data["label"].size
-    assert n > 50
+    target, mask = data["target"], data["mask"]
+    assert len(target) > 50
     assert set(data["family"].tolist()) == {"merge"}
-    assert np.all(data["mask"][np.arange(n), data["label"]])  # the label is a real candidate
-    assert np.all(data["mask"].sum(axis=1) >= 2)
-    assert np.all(lanes_branch(data["lateral"], data["mask"], data["to_lane_end"]))
+    assert np.all(target <= mask) and np.all(target.any(axis=1))  # targets are real candidates, at least one
+    assert np.all(target.sum(axis=1) < mask.sum(axis=1))  # something is decided
+    assert np.all(mask.sum(axis=1) >= 2)
+    assert np.all(lanes_branch(data["lateral"], mask, data["to_lane_end"]))
     assert np.all(data["history"][:, -1, :2] == 0.0)  # the agent frame's origin is the agent now
-    assert {0, 1} <= set(data["label"].tolist())  # some stay on the acceleration lane a while, some merge
+    assert target[:, 0].any() and target[:, 1].any()  # some stay on the acceleration lane a while, some merge
     spec = dataclasses.replace(load_scenario(SCENARIOS / "merge_onramp.toml"), ego=None)
     again = dataset.record_run(spec.with_overrides(seed=5, duration_s=150.0))
     assert all(np.array_equal(data[k], again[k]) for k in dataset.ARRAYS)
+
+
+def test_a_car_keeping_its_lane_on_an_approach_targets_both_turns_of_its_lane():
+    """N_in_0 of intersection_tls leads straight on and right. A car that stays on it, 80-90 m before the junction,
+    is 3 s later on both those paths still, and on neither lane change: a sample whose target is the two keep
+    candidates (not dropped as undecided, which left only lane-changers in the data there)."""
+    net = RoadNetwork.from_file(networks_root() / "intersection_tls" / "intersection_tls.net.xml")
+    steps = []
+    for k in range(61):  # 6 s at 0.1 s, 10 m/s southwards from 110 m before the stop line
+        t = 0.1 * k
+        steps.append((t, np.array(["car"]), np.array([-4.8]), np.array([120.4 - 10.0 * t]), np.array([-np.pi / 2]),
+                      np.array(["N_in_0"]), np.zeros(1), np.zeros(1), np.zeros(1, dtype=int)))
+    data = dataset.samples_from_steps(net, steps, 0.1, "intersection_tls", 0, "intersection")
+    assert data["time"].tolist() == [2.0, 2.5, 3.0]
+    kept = data["lateral"][data["target"]].reshape(3, -1)
+    assert kept.shape == (3, 2) and np.all(kept == KEEP)
+    assert np.all(data["mask"].sum(axis=1) == 3)  # straight, right (its lane), left (the left-turn lane)
 
 
 def test_a_short_training_run_lowers_the_loss_and_is_deterministic(merge_samples):
@@ -88,7 +107,7 @@ def test_a_short_training_run_lowers_the_loss_and_is_deterministic(merge_samples
     def loss_of(net: IntentionNet) -> float:
         with torch.inference_mode():
             return float(nll_loss(net(torch.as_tensor(data["history"]), torch.as_tensor(data["lanes"]),
-                                      torch.as_tensor(data["mask"])), torch.as_tensor(data["label"])))
+                                      torch.as_tensor(data["mask"])), torch.as_tensor(data["target"])))
 
     torch.manual_seed(settings.seed)
     untrained = loss_of(IntentionNet(**ARCHITECTURE))

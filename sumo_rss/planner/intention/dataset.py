@@ -2,9 +2,11 @@
 
 One run = one scenario at one seed, without the ego (only SUMO's own traffic). Every ``SAMPLE_EVERY`` seconds
 each vehicle with ``HISTORY_STEPS`` of past and ``FUTURE`` seconds of future on the road gives one sample: its
-past trajectory and candidate centrelines (features.py) and, as label, the candidate nearest to where it
-actually is ``FUTURE`` seconds later. Samples with a single candidate, or whose nearest two candidates are within
-``SAME_PATH_M`` of that point (not yet decided), are left out. By default only the samples where lanes branch are
+past trajectory and candidate centrelines (features.py) and, as target, the set of candidates that pass where
+it actually is ``FUTURE`` seconds later: the nearest one and every other within ``SAME_PATH_M`` of it (a car
+that keeps its lane on an approach is still on both its straight and its right-turn path then; which of them it
+takes is not known yet, but that it did not change lanes is). Samples with a single candidate, or whose target
+is every candidate (nothing decided yet), are left out. By default only the samples where lanes branch are
 kept (:func:`~.features.lanes_branch`: where CFB uses the network; elsewhere it keeps the rules). Deterministic given
 scenario and seed (SUMO's seed); saved as compressed numpy arrays.
 """
@@ -24,11 +26,11 @@ from .features import (HISTORY_DT, HISTORY_FEATURES, HISTORY_STEPS, LANE_POINTS,
                        CandidateFinder, distance_to_candidates, history_in_agent_frame)
 
 SAMPLE_EVERY = 0.5  # [s]
-FUTURE = 3.0  # [s] the label is the candidate followed this much later
-OFF_ROAD_M = 3.0  # [m] a future point farther than this from every candidate (a teleport) gives no label
+FUTURE = 3.0  # [s] the target is the candidates followed this much later
+OFF_ROAD_M = 3.0  # [m] a future point farther than this from every candidate (a teleport) gives no target
 FAMILIES = {"intersection_tls": "intersection", "intersection_priority": "intersection", "merge": "merge",
             "highway": "highway"}
-ARRAYS = ("history", "lanes", "mask", "lateral", "label", "offset", "lat_speed", "to_lane_end", "family",
+ARRAYS = ("history", "lanes", "mask", "lateral", "target", "offset", "lat_speed", "to_lane_end", "family",
           "scenario", "seed", "time")
 
 
@@ -80,9 +82,10 @@ def samples_from_steps(network: RoadNetwork, steps: list, step_s: float, scenari
     t = t_idx[col]
     cand = CandidateFinder(network).candidates(lane[veh, t], x[veh, t], y[veh, t], heading[veh, t])
     dist = distance_to_candidates(cand.world, cand.mask, x[veh, t + ahead], y[veh, t + ahead])
-    order = np.sort(dist, axis=1)
-    label = np.argmin(dist, axis=1)
-    decided = (cand.mask.sum(axis=1) >= 2) & (order[:, 0] <= OFF_ROAD_M) & (order[:, 1] - order[:, 0] >= SAME_PATH_M)
+    nearest = dist.min(axis=1)
+    target = dist < nearest[:, None] + SAME_PATH_M  # padding (inf) never
+    real = cand.mask.sum(axis=1)
+    decided = (real >= 2) & (nearest <= OFF_ROAD_M) & (target.sum(axis=1) < real)
     keep = np.flatnonzero(decided & (all_samples | cand.branching()))
     veh, t = veh[keep], t[keep]
     hist_t = t[:, None] + past[None, :]
@@ -94,7 +97,7 @@ def samples_from_steps(network: RoadNetwork, steps: list, step_s: float, scenari
         "lanes": cand.lanes[keep].astype(np.float32),
         "mask": cand.mask[keep],
         "lateral": cand.lateral[keep].astype(np.int8),
-        "label": label[keep].astype(np.int64),
+        "target": target[keep],
         "offset": offset[veh, t].astype(np.float32),
         "lat_speed": lat_speed[veh, t].astype(np.float32),
         "to_lane_end": cand.to_lane_end[keep],
@@ -116,7 +119,7 @@ def empty() -> dict[str, np.ndarray]:
     return {"history": np.zeros((0, HISTORY_STEPS, HISTORY_FEATURES), np.float32),
             "lanes": np.zeros((0, MAX_CANDIDATES, LANE_POINTS, 3), np.float32),
             "mask": np.zeros((0, MAX_CANDIDATES), bool), "lateral": np.zeros((0, MAX_CANDIDATES), np.int8),
-            "label": np.zeros(0, np.int64), "offset": np.zeros(0, np.float32), "lat_speed": np.zeros(0, np.float32),
+            "target": np.zeros((0, MAX_CANDIDATES), bool), "offset": np.zeros(0, np.float32), "lat_speed": np.zeros(0, np.float32),
             "to_lane_end": np.zeros(0),
             "family": np.zeros(0, str), "scenario": np.zeros(0, str), "seed": np.zeros(0, np.int64),
             "time": np.zeros(0)}

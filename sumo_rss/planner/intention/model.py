@@ -50,9 +50,10 @@ class IntentionNet(nn.Module):
         return torch.log_softmax(scores.masked_fill(~mask, float("-inf")), dim=1)
 
 
-def nll_loss(log_probs: torch.Tensor, label: torch.Tensor) -> torch.Tensor:
-    """Mean negative log-likelihood of the labelled candidates."""
-    return -log_probs.gather(1, label[:, None]).mean()
+def nll_loss(log_probs: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean negative log-likelihood of each sample's target set: −log Σ p over its target candidates
+    (``target`` [n, C] bool, ≥ 1 True per row)."""
+    return -torch.logsumexp(log_probs.masked_fill(~target, float("-inf")), dim=1).mean()
 
 
 def real_width(mask: torch.Tensor) -> int:

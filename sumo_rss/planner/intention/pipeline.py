@@ -66,7 +66,7 @@ def train_intent(plan: DataPlan, out: Path, settings: TrainSettings = TrainSetti
         train_data = _dataset(plan, plan.train_seeds, out / "train.npz", reuse_data, workers, bar.update)
         test_data = _dataset(plan, plan.test_seeds, out / "test.npz", reuse_data, workers, bar.update)
     torch.set_num_threads(1)  # deterministic, and what the planner has at run time: one core
-    total = settings.epochs * batches_per_epoch(train_data["label"].size, settings)
+    total = settings.epochs * batches_per_epoch(len(train_data["target"]), settings)
     with tqdm(total=total, unit="batch", desc="train", disable=not show_progress) as bar:
         def progress(done: int, loss: float) -> None:
             bar.update(1)
@@ -77,7 +77,7 @@ def train_intent(plan: DataPlan, out: Path, settings: TrainSettings = TrainSetti
     with atomic_path(weights) as tmp:
         save_weights(net, ARCHITECTURE, tmp)
     card = {"format": FORMAT, "architecture": dict(ARCHITECTURE), "data": plan.card(),
-            "samples": {"train": int(train_data["label"].size), "test": int(test_data["label"].size)},
+            "samples": {"train": int(len(train_data["target"])), "test": int(len(test_data["target"]))},
             "training": dataclasses.asdict(settings), "torch": torch.__version__,
             "weights_bytes": weights.stat().st_size, "held_out": evaluate(net, test_data)}
     write_json(out / CARD_FILE, card)

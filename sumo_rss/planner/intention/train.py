@@ -2,9 +2,10 @@
 
 The held-out evaluation reports, per scenario family, the top-1 accuracy and mean NLL of the network and of the
 planner's rule-based belief (behavior/intention.rule_belief spread over the candidates: each lateral class's
-probability split evenly among its candidates, ties to the straightest), on all samples and on the samples
-whose label is not the rule's default (the straightest candidate of the agent's own lane): turns, lane changes
-and merges.
+probability split evenly among its candidates), on all samples and on the samples whose target does not hold the
+rule's default (the straightest candidate of the agent's own lane): turns, lane changes and merges. A sample's
+target is a set of candidates (dataset.py); top-1 counts a hit when the most probable candidate is in it, and
+the NLL is −log of the probability of the whole set.
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ def rule_probabilities(data: dict[str, np.ndarray]) -> np.ndarray:
 
 def _tensors(data: dict[str, np.ndarray]) -> tuple[torch.Tensor, ...]:
     return (torch.as_tensor(data["history"], dtype=torch.float32), torch.as_tensor(data["lanes"], dtype=torch.float32),
-            torch.as_tensor(data["mask"]), torch.as_tensor(data["label"], dtype=torch.long))
+            torch.as_tensor(data["mask"]), torch.as_tensor(data["target"]))
 
 
 def train(data: dict[str, np.ndarray], settings: TrainSettings = TrainSettings(),
@@ -51,15 +52,15 @@ def train(data: dict[str, np.ndarray], settings: TrainSettings = TrainSettings()
     Deterministic for a given ``settings.seed`` (single-threaded torch)."""
     torch.manual_seed(settings.seed)
     net = IntentionNet(**ARCHITECTURE)
-    history, lanes, mask, label = _tensors(data)
+    history, lanes, mask, target = _tensors(data)
     optimiser = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
     generator = torch.Generator().manual_seed(settings.seed)
     done = 0
     for _ in range(settings.epochs):
         net.train()
-        for batch in torch.randperm(label.shape[0], generator=generator).split(settings.batch_size):
+        for batch in torch.randperm(target.shape[0], generator=generator).split(settings.batch_size):
             width = real_width(mask[batch])
-            loss = nll_loss(net(history[batch], lanes[batch, :width], mask[batch, :width]), label[batch])
+            loss = nll_loss(net(history[batch], lanes[batch, :width], mask[batch, :width]), target[batch, :width])
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -81,24 +82,24 @@ def predict(net: IntentionNet, data: dict[str, np.ndarray], batch_size: int = 20
     return np.concatenate(out) if out else np.zeros(data["mask"].shape)
 
 
-def _scores(probs: np.ndarray, label: np.ndarray) -> dict[str, float]:
-    picked = probs[np.arange(label.size), label]
-    return {"accuracy": float(np.mean(np.argmax(probs, axis=1) == label)),
+def _scores(probs: np.ndarray, target: np.ndarray) -> dict[str, float]:
+    picked = np.sum(np.where(target, probs, 0.0), axis=1)
+    return {"accuracy": float(np.mean(target[np.arange(len(target)), np.argmax(probs, axis=1)])),
             "nll": float(np.mean(-np.log(np.maximum(picked, PROBABILITY_FLOOR))))}
 
 
 def evaluate(net: IntentionNet, data: dict[str, np.ndarray]) -> dict[str, dict]:
     """Per family (and 'all'): samples, and accuracy / NLL of the network and the rule on all samples and on the
-    samples whose label is not the rule's default candidate."""
+    samples whose target does not hold the rule's default candidate."""
     net_p, rule_p = predict(net, data), rule_probabilities(data)
-    label = data["label"]
+    target = data["target"]
     metrics: dict[str, dict] = {}
     for family in ["all"] + sorted(set(data["family"].tolist())):
-        rows = np.ones(label.size, bool) if family == "all" else data["family"] == family
-        changes = rows & (label != 0)
+        rows = np.ones(len(target), bool) if family == "all" else data["family"] == family
+        changes = rows & ~target[:, 0]
         entry: dict = {"samples": int(rows.sum()), "non_default_samples": int(changes.sum())}
         for name, probs in (("net", net_p), ("rule", rule_p)):
-            entry[name] = _scores(probs[rows], label[rows]) if rows.any() else {}
-            entry[f"{name}_non_default"] = _scores(probs[changes], label[changes]) if changes.any() else {}
+            entry[name] = _scores(probs[rows], target[rows]) if rows.any() else {}
+            entry[f"{name}_non_default"] = _scores(probs[changes], target[changes]) if changes.any() else {}
         metrics[family] = entry
     return metrics
