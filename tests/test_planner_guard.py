@@ -50,3 +50,24 @@ def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_
                        OwedResponses(*(np.zeros(0, dtype=a.dtype) for a in vars(owed).values())))
     assert free.speed == pytest.approx(0.3)  # nothing owed: it may go
     assert guard.counts.lon_owed == 2
+
+
+def _owing_lateral(t_b: float, u0: float, other_is_left: bool) -> OwedResponses:
+    no = np.zeros(1, dtype=bool)
+    return OwedResponses(np.array([t_b]), no, no, no, np.ones(1, dtype=bool), np.array([other_is_left]),
+                         np.array([u0]), np.array(["x"], object), np.ones(1, dtype=bool))
+
+
+@pytest.mark.parametrize("t_b, other_is_left, lateral_speed", [
+    (19.6, True, 0.55),  # τ = 0.5 s ≤ ρ: u0 + (a_lat − 0.1)·τ = 0.5 + 0.1·0.5
+    (18.1, True, 0.0),  # τ = 2 s: 0.5 + 0.1·1 − 0.9·1 < 0, so no speed towards the other at all
+    (18.1, False, 1.0),  # the other car is on the right: moving left is moving away, as planned
+])
+def test_an_owed_lateral_response_bounds_the_speed_towards_the_other_car(frame, t_b, other_is_left, lateral_speed):
+    """ad_rss: a_lat 0.2, b_lat 0.8 m/s², ρ 1 s; the guard keeps 0.1 m/s² inside both. Trigger at t_b with the
+    ego moving towards the other car at u0 = 0.5 m/s; the plan moves it left at 1 m/s."""
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    planned = TrajectoryState(300.0 + 2.0 * DT, -5.25 + 1.0 * DT, 0.0, 2.0, 0.0)
+    done = guard.apply(_ego_alone(2.0), 0, frame, planned, _owing_lateral(t_b, 0.5, other_is_left))
+    assert (done.y + 5.25) / DT == pytest.approx(lateral_speed, abs=1e-6)
+    assert guard.counts.lat_owed == int(lateral_speed < 1.0)

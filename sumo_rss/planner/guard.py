@@ -20,7 +20,7 @@ import numpy as np
 
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
-from ..rss.responsibility import OwedResponses
+from ..rss.responsibility import OwedResponses, lateral_speed_bound
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
 from .road_frame import RoadFrame
@@ -124,9 +124,10 @@ class ProperResponseGuard:
         if np.any(owed.owed_lat):
             side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
             t_lat = tau[owed.owed_lat]
-            envelope = owed.u0[owed.owed_lat] + float(p_e.lat_accel_max[0]) * np.minimum(t_lat, rho) - \
-                float(p_e.lat_brake_min[0]) * np.maximum(t_lat - rho, 0.0)
-            bound = np.maximum(envelope - ACCEL_MARGIN * t_lat, 0.0)
+            # The auditor's envelope with ACCEL_MARGIN kept inside both of its accelerations.
+            bound = lateral_speed_bound(owed.u0[owed.owed_lat], t_lat, rho,
+                                        float(p_e.lat_accel_max[0]) - ACCEL_MARGIN,
+                                        float(p_e.lat_brake_min[0]) + ACCEL_MARGIN)
             for sd, b in zip(side, bound):
                 if sd * u_plan > b:
                     c.lat_owed += int(sd * u_plan > b + COUNT_TOLERANCE)
