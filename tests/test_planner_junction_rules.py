@@ -9,10 +9,8 @@ from sumo_rss.planner.junction_rules import NO_STOP, STOP_MARGIN, stop_line
 from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.road.routes import RouteTable
+from sumo_rss.rss.auditor import ParamResolver
 from sumo_rss.sim.snapshot import WorldSnapshot
-
-B_MIN, B_MAX = 4.0, 8.0
-
 
 def _model(name: str) -> tuple[RoadNetwork, JunctionModel]:
     net = RoadNetwork.from_file(NETWORKS / name / f"{name}.net.xml")
@@ -44,8 +42,8 @@ def _snapshot(net: RoadNetwork, cars: list[tuple[str, str, float, float, tuple[s
 
 
 def _stop(snapshot: WorldSnapshot, net: RoadNetwork, junctions: JunctionModel):
-    """The stop line of the ego (row 0) with ad_rss braking."""
-    return stop_line(snapshot, 0, net, junctions, RouteTable(net), B_MIN, B_MAX)
+    """The stop line of the ego (row 0) under ad_rss (b_min 4, b_max 8 m/s², ρ 1 s, a_acc 3.5 m/s²)."""
+    return stop_line(snapshot, 0, net, junctions, RouteTable(net), ParamResolver("ad_rss").arrays(snapshot))
 
 
 def _signal(net: RoadNetwork, junctions: JunctionModel, lane_id: str, to_edge: str, state: str) -> dict[str, str]:
@@ -93,3 +91,25 @@ def test_the_minor_road_yields_to_a_major_road_car_that_arrives_in_time():
     major_ego = ("ego", "E_in_0", 60.0, 14.0, ("E_in", "J_W"))
     minor = ("minor", "S_in_0", 30.0, 8.0, ("S_in", "J_N"))
     assert _stop(_snapshot(net, [major_ego, minor]), net, junctions) == NO_STOP
+
+
+def test_the_ego_waits_at_the_line_while_a_car_waits_at_red_next_to_its_turn():
+    """intersection_tls, NS permissive phase: the ego turns left from S_in_1 (its light 'g'); a car waits at red on
+    W_in_1 to turn left too. Their turns share an area that starts 0.2 m past W's stop line, so a car standing
+    1 m before that line can not stop before it under ad_rss's worst case (1.75 m during ρ + 1.53 m braking),
+    and it is nearer to the area than the ego: the ego, closing in behind it on the virtual line, would owe
+    braking inside the junction (it stopped there and stayed 50 s, SUMO's crossing traffic waiting for it).
+    Waiting 20 m back it could stop; the ego goes."""
+    net, junctions = _model("intersection_tls")
+    phase = {"C": "GGgrrrGGgrrr"}
+    ego = ("ego", "S_in_1", 2.0, 0.0, ("S_in", "W_out"))
+    stop = _stop(_snapshot(net, [ego, ("w", "W_in_1", 1.0, 0.0, ("W_in", "N_out"))], phase), net, junctions)
+    assert stop.reason == "rss" and stop.distance == pytest.approx(2.0 - STOP_MARGIN, abs=1e-6)
+    assert _stop(_snapshot(net, [ego, ("w", "W_in_1", 20.0, 0.0, ("W_in", "N_out"))], phase), net, junctions) == NO_STOP
+    assert _stop(_snapshot(net, [ego], phase), net, junctions) == NO_STOP
+    # Creeping up to its line at 1 m/s it can stop even less (5.3 m), and is in front of the ego: the same.
+    creeping = ("w", "W_in_1", 1.0, 1.0, ("W_in", "N_out"))
+    assert _stop(_snapshot(net, [ego, creeping], phase), net, junctions).reason == "rss"
+    # Still 60 m out at 10 m/s it can stop before the area: if it comes too close later, stopping is its duty.
+    coming = ("w", "W_in_1", 60.0, 10.0, ("W_in", "N_out"))
+    assert _stop(_snapshot(net, [ego, coming], phase), net, junctions) == NO_STOP

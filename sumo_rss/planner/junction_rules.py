@@ -6,19 +6,28 @@ The ego approaching a junction on its route stops at the stop line (the end of i
 - to **yield** to a vehicle on a conflicting link that has priority over the ego's link (by the signals where
   both links are signalised and their states differ, else by the junction's static priority), unless that
   vehicle reaches the conflict area only ``YIELD_MARGIN`` s or more after the ego would have cleared it;
+- for **RSS**: while a vehicle stands before a conflict area of the ego's way (slower than ``MIN_SPEED``, or in
+  front of the ego on RSS's virtual line and unable to stop before the area) and the ego's crossing, with that
+  vehicle held, would make their pair unsafe (rss.md §4) somewhere: the rule keeping it safe is "in front", so
+  the ego, its rear car, would owe braking inside the junction. On intersection_tls a car waiting at red 1.2 m
+  before the area its left turn shares with the ego's cannot stop before it by RSS's worst case (accelerating
+  during ρ), and the ego that entered was held inside the junction for over a minute (docs/planner.md step 2);
 - never once it can no longer stop at the line at its RSS b_max (it drives on; the RSS guard still applies).
 Vehicles on conflicting approaches are the junction's key vehicles for this rule. Pure numpy, no libsumo.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
-from ..rss.intersection import junction_entries, next_route_edge
+from ..rss.intersection import PRIORITY_A, PRIORITY_B, PRIORITY_SAME, IntersectionSafety, intersection_safety, \
+    junction_entries, next_route_edge
+from ..rss.params import RssParamArrays
 from ..sim.snapshot import WorldSnapshot
 
 STOP_RANGE = 150.0  # [m] stop lines farther ahead than this are not considered yet
@@ -26,6 +35,7 @@ STOP_MARGIN = 1.0  # [m] the front bumper stops this far before the line
 YIELD_MARGIN = 2.0  # [s] time a prioritised vehicle must arrive after the ego has cleared their conflict area
 CLEAR_ACCEL = 1.5  # [m/s²] acceleration assumed for the ego crossing the junction
 MIN_SPEED = 0.5  # [m/s] slower vehicles outside the junction are waiting, not arriving
+CROSSING_STEP = 0.5  # [m] spacing of the ego's positions checked against waiting vehicles
 RED, YELLOW = "rRs", "yYu"  # SUMO signal characters that stop the ego
 
 
@@ -34,7 +44,7 @@ class StopLine:
     """``distance`` [m] from the ego's front bumper to where it must stop (inf: drive on), and why."""
 
     distance: float
-    reason: str  # 'red' | 'yellow' | 'yield' | '' (none)
+    reason: str  # 'red' | 'yellow' | 'yield' | 'rss' | '' (none)
 
 
 NO_STOP = StopLine(np.inf, "")
@@ -46,9 +56,11 @@ def _time_to_cover(v: float, distance: float, accel: float) -> float:
 
 
 def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions: JunctionModel,
-              routes: RouteTable, b_min: float, b_max: float) -> StopLine:
-    """Whether and where the ego (snapshot row ``ego``) must stop before the junction ahead; ``b_min``/``b_max``
-    [m/s²] are its RSS braking: it stops for yellow if it can at b_min, and for anything if it can at b_max."""
+              routes: RouteTable, params: RssParamArrays) -> StopLine:
+    """Whether and where the ego (snapshot row ``ego``) must stop before the junction ahead; ``params`` are every
+    snapshot row's RSS parameters: the ego stops for yellow if it can at its b_min, and for anything if it can at
+    its b_max."""
+    b_min, b_max = float(params.lon_brake_min[ego]), float(params.lon_brake_max[ego])
     lanes = network.lane_indices(snapshot.lane_id)
     next_edge = next_route_edge(routes.remaining(snapshot), network.lane_edge[lanes])
     rows, link, pos = junction_entries(lanes, snapshot.lane_pos, next_edge, network, junctions, np.inf)
@@ -81,8 +93,39 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     inside_area = (f_pos >= start) & (f_pos - snapshot.length[cars] <= end)
     arriving = (f_pos < start) & ((f_v >= MIN_SPEED) | (f_pos >= 0.0))
     t_foe = np.where(inside_area, 0.0, (start - f_pos) / np.maximum(f_v, MIN_SPEED))
-    clear = -float(pos[mine[0]]) + float(np.max(junctions.area_end[own, fl])) + float(snapshot.length[ego])
+    ego_pos = float(pos[mine[0]])
+    clear = -ego_pos + float(np.max(junctions.area_end[own, fl])) + float(snapshot.length[ego])
     t_clear = _time_to_cover(v, clear, CLEAR_ACCEL)
     if np.any(prioritised & (inside_area | (arriving & (t_foe < t_clear + YIELD_MARGIN)))):
         return StopLine(distance, "yield")
+    # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
+    # virtual line now without being able to stop before the area: once the ego closes in, the ego must brake.
+    yields = np.where(by_signal, ranks[fl] < ranks[own], junctions.static_priority[own, fl] > 0)
+    priority = np.where(prioritised, PRIORITY_B, np.where(yields, PRIORITY_A, PRIORITY_SAME))
+    now = _pair_safety(snapshot, ego, own, ego_pos, v, fl, cars, f_pos, f_v, priority, junctions, params)
+    ahead_unstoppable = now.b_in_front & now.in_front & ~now.able_to_stop
+    waiting = (f_pos < start) & ((f_v < MIN_SPEED) | ahead_unstoppable)
+    if np.any(waiting):
+        x = np.arange(ego_pos, float(junctions.area_end[own, fl].max()) + float(snapshot.length[ego]) + CROSSING_STEP,
+                      CROSSING_STEP)[:, None]  # [k, 1] the ego's front bumper along its crossing
+        v_x = np.sqrt(v * v + 2.0 * CLEAR_ACCEL * (x - ego_pos))
+        w = np.flatnonzero(waiting)
+        crossing = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size),
+                                priority[w], junctions, params)
+        on_way = junctions.area_end[own, fl[w]] - x + float(snapshot.length[ego]) > 0.0  # not yet left that area
+        if np.any(on_way & ~crossing.safe):
+            return StopLine(distance, "rss")
     return NO_STOP
+
+
+def _pair_safety(snapshot: WorldSnapshot, ego: int, own: int, ego_pos: Any, ego_v: Any, links: np.ndarray,
+                 cars: np.ndarray, car_pos: np.ndarray, car_v: np.ndarray, priority: np.ndarray,
+                 junctions: JunctionModel, params: RssParamArrays) -> IntersectionSafety:
+    """rss.md §4 between the ego on its link ``own`` (front bumper at ``ego_pos`` [m] along it, speed ``ego_v``
+    [m/s]; arrays [k, 1] give k states) and ``cars`` on ``links`` (front bumpers at ``car_pos``, speeds
+    ``car_v``), per their conflict area; ``priority`` PRIORITY_A: the ego's, PRIORITY_B: the car's."""
+    length, o_len = float(snapshot.length[ego]), snapshot.length[cars]
+    start, end = junctions.area_start[own, links], junctions.area_end[own, links]
+    return intersection_safety(ego_v, start - ego_pos, end - ego_pos + length, length,
+                               params.take(np.array([ego])), car_v, junctions.area_start[links, own] - car_pos,
+                               junctions.area_end[links, own] - car_pos + o_len, o_len, params.take(cars), priority)
