@@ -119,8 +119,8 @@ def empty() -> dict[str, np.ndarray]:
     return {"history": np.zeros((0, HISTORY_STEPS, HISTORY_FEATURES), np.float32),
             "lanes": np.zeros((0, MAX_CANDIDATES, LANE_POINTS, 3), np.float32),
             "mask": np.zeros((0, MAX_CANDIDATES), bool), "lateral": np.zeros((0, MAX_CANDIDATES), np.int8),
-            "target": np.zeros((0, MAX_CANDIDATES), bool), "offset": np.zeros(0, np.float32), "lat_speed": np.zeros(0, np.float32),
-            "to_lane_end": np.zeros(0),
+            "target": np.zeros((0, MAX_CANDIDATES), bool), "offset": np.zeros(0, np.float32),
+            "lat_speed": np.zeros(0, np.float32), "to_lane_end": np.zeros(0),
             "family": np.zeros(0, str), "scenario": np.zeros(0, str), "seed": np.zeros(0, np.int64),
             "time": np.zeros(0)}
 

@@ -77,7 +77,7 @@ def train_intent(plan: DataPlan, out: Path, settings: TrainSettings = TrainSetti
     with atomic_path(weights) as tmp:
         save_weights(net, ARCHITECTURE, tmp)
     card = {"format": FORMAT, "architecture": dict(ARCHITECTURE), "data": plan.card(),
-            "samples": {"train": int(len(train_data["target"])), "test": int(len(test_data["target"]))},
+            "samples": {"train": len(train_data["target"]), "test": len(test_data["target"])},
             "training": dataclasses.asdict(settings), "torch": torch.__version__,
             "weights_bytes": weights.stat().st_size, "held_out": evaluate(net, test_data)}
     write_json(out / CARD_FILE, card)
