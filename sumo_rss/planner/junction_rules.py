@@ -25,8 +25,8 @@ import numpy as np
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
-from ..rss.intersection import PRIORITY_A, PRIORITY_B, PRIORITY_SAME, IntersectionSafety, intersection_safety, \
-    junction_entries, next_route_edge
+from ..rss.intersection import PRIORITY_B, IntersectionSafety, intersection_safety, junction_entries, \
+    link_priority, next_route_edge
 from ..rss.params import RssParamArrays
 from ..sim.snapshot import WorldSnapshot
 
@@ -86,8 +86,8 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     if foes.size == 0:
         return NO_STOP
     fl, cars = link[foes], rows[foes]
-    by_signal = (ranks[own] >= 0) & (ranks[fl] >= 0) & (ranks[fl] != ranks[own])
-    prioritised = np.where(by_signal, ranks[fl] > ranks[own], junctions.static_priority[own, fl] < 0)
+    priority = link_priority(junctions, ranks, own, fl)[0]  # as the auditor gives it (PRIORITY_A: the ego's)
+    prioritised = priority == PRIORITY_B
     start, end = junctions.area_start[fl, own], junctions.area_end[fl, own]  # along each foe's link
     f_pos, f_v = pos[foes], snapshot.speed[cars]
     inside_area = (f_pos >= start) & (f_pos - snapshot.length[cars] <= end)
@@ -100,8 +100,6 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
         return StopLine(distance, "yield")
     # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
     # virtual line now without being able to stop before the area: once the ego closes in, the ego must brake.
-    yields = np.where(by_signal, ranks[fl] < ranks[own], junctions.static_priority[own, fl] > 0)
-    priority = np.where(prioritised, PRIORITY_B, np.where(yields, PRIORITY_A, PRIORITY_SAME))
     now = _pair_safety(snapshot, ego, own, ego_pos, v, fl, cars, f_pos, f_v, priority, junctions, params)
     ahead_unstoppable = now.b_in_front & now.in_front & ~now.able_to_stop
     waiting = (f_pos < start) & ((f_v < MIN_SPEED) | ahead_unstoppable)

@@ -125,6 +125,21 @@ def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
     return np.where(has, route_edges[np.arange(len(edge)), idx + 1], -1)
 
 
+def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(PRIORITY_* of link ``la`` against link ``lb``, whether the signals decided it), given the links' signal
+    ``ranks`` (:meth:`JunctionModel.signal_ranks`). The signals decide where both links are signalised and their
+    ranks differ, else the junction; a signalised link whose state is unknown (offline, actuated program) gives
+    no priority either way."""
+    rank_a, rank_b = ranks[la], ranks[lb]
+    by_signal = (rank_a >= 0) & (rank_b >= 0) & (rank_a != rank_b)
+    unknown = ((junctions.link_tls_index[la] >= 0) & (rank_a < 0)) | \
+        ((junctions.link_tls_index[lb] >= 0) & (rank_b < 0))
+    static = np.where(unknown, 0, junctions.static_priority[la, lb])
+    priority = np.where(by_signal, np.where(rank_a > rank_b, PRIORITY_A, PRIORITY_B),
+                        np.where(static > 0, PRIORITY_A, np.where(static < 0, PRIORITY_B, PRIORITY_SAME)))
+    return priority, by_signal
+
+
 def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray, network: RoadNetwork,
                      junctions: JunctionModel, horizon: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
@@ -166,15 +181,7 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
     ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b = (
         x[keep] for x in (ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b))
-    # Priority: the signals decide where both links are signalised and their ranks differ, else the junction.
-    ranks = junctions.signal_ranks(snapshot.tls_states)
-    rank_a, rank_b = ranks[la], ranks[lb]
-    by_signal = (rank_a >= 0) & (rank_b >= 0) & (rank_a != rank_b)
-    # A signalised link whose state is unknown (offline, actuated program) gives no priority either way.
-    unknown = ((junctions.link_tls_index[la] >= 0) & (rank_a < 0)) | ((junctions.link_tls_index[lb] >= 0) & (rank_b < 0))
-    static = np.where(unknown, 0, junctions.static_priority[la, lb])
-    priority = np.where(by_signal, np.where(rank_a > rank_b, PRIORITY_A, PRIORITY_B),
-                        np.where(static > 0, PRIORITY_A, np.where(static < 0, PRIORITY_B, PRIORITY_SAME)))
+    priority, by_signal = link_priority(junctions, junctions.signal_ranks(snapshot.tls_states), la, lb)
     kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
     v_a, v_b = np.maximum(frame.v_lon[ra], 0.0), np.maximum(frame.v_lon[rb], 0.0)
     p = frame.params
