@@ -25,8 +25,8 @@ import numpy as np
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
-from ..rss.intersection import PRIORITY_B, IntersectionSafety, intersection_safety, junction_entries, \
-    link_priority, next_route_edge
+from ..rss.intersection import PRIORITY_B, IntersectionSafety, area_distances, intersection_safety, \
+    junction_entries, link_priority, next_route_edge
 from ..rss.params import RssParamArrays
 from ..sim.snapshot import WorldSnapshot
 
@@ -110,7 +110,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
         w = np.flatnonzero(waiting)
         crossing = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size),
                                 priority[w], junctions, params)
-        on_way = junctions.area_end[own, fl[w]] - x + float(snapshot.length[ego]) > 0.0  # not yet left that area
+        on_way = area_distances(junctions, own, fl[w], x, float(snapshot.length[ego]))[1] > 0.0  # not yet left it
         if np.any(on_way & ~crossing.safe):
             return StopLine(distance, "rss")
     return NO_STOP
@@ -123,7 +123,7 @@ def _pair_safety(snapshot: WorldSnapshot, ego: int, own: int, ego_pos: Any, ego_
     [m/s]; arrays [k, 1] give k states) and ``cars`` on ``links`` (front bumpers at ``car_pos``, speeds
     ``car_v``), per their conflict area; ``priority`` PRIORITY_A: the ego's, PRIORITY_B: the car's."""
     length, o_len = float(snapshot.length[ego]), snapshot.length[cars]
-    start, end = junctions.area_start[own, links], junctions.area_end[own, links]
-    return intersection_safety(ego_v, start - ego_pos, end - ego_pos + length, length,
-                               params.take(np.array([ego])), car_v, junctions.area_start[links, own] - car_pos,
-                               junctions.area_end[links, own] - car_pos + o_len, o_len, params.take(cars), priority)
+    enter, leave = area_distances(junctions, own, links, ego_pos, length)
+    o_enter, o_leave = area_distances(junctions, links, own, car_pos, o_len)
+    return intersection_safety(ego_v, enter, leave, length, params.take(np.array([ego])), car_v, o_enter, o_leave,
+                               o_len, params.take(cars), priority)

@@ -125,6 +125,14 @@ def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
     return np.where(has, route_edges[np.arange(len(edge)), idx + 1], -1)
 
 
+def area_distances(junctions: JunctionModel, link: Any, foe: Any, pos: Any, length: Any
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(d_enter, d_exit) [m] of a car on ``link`` to its conflict area with ``foe``'s link: from its front bumper
+    at ``pos`` along the link's path to the area's start (negative once inside), and from its rear bumper
+    (``length`` behind) to the area's end."""
+    return junctions.area_start[link, foe] - pos, junctions.area_end[link, foe] - pos + length
+
+
 def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any) -> tuple[np.ndarray, np.ndarray]:
     """(PRIORITY_* of link ``la`` against link ``lb``, whether the signals decided it), given the links' signal
     ``ranks`` (:meth:`JunctionModel.signal_ranks`). The signals decide where both links are signalised and their
@@ -174,10 +182,8 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     ea, eb = np.where(swap, j, i), np.where(swap, i, j)
     ra, rb, la, lb = rows[ea], rows[eb], links[ea], links[eb]
     length = snapshot.length
-    enter_a = junctions.area_start[la, lb] - pos[ea]
-    enter_b = junctions.area_start[lb, la] - pos[eb]
-    exit_a = junctions.area_end[la, lb] - pos[ea] + length[ra]
-    exit_b = junctions.area_end[lb, la] - pos[eb] + length[rb]
+    enter_a, exit_a = area_distances(junctions, la, lb, pos[ea], length[ra])
+    enter_b, exit_b = area_distances(junctions, lb, la, pos[eb], length[rb])
     keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
     ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b = (
         x[keep] for x in (ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b))
