@@ -125,15 +125,16 @@ def build_parser() -> argparse.ArgumentParser:
                            description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
                                        "write episodes.csv, violations.csv, collisions.csv and rss_params.json.",
                            epilog=_AUDIT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
-    audit.add_argument("fcd", type=Path, help="SUMO FCD file (fcd-export)")
+    audit.add_argument("fcd", type=Path, help="SUMO FCD file (sumo --fcd-output)")
     audit.add_argument("--net", type=Path, required=True, help="the SUMO network of the run (.net.xml)")
     audit.add_argument("--vtypes", type=Path,
                        help="route/vType file: vehicle sizes and dynamics, routes (default: SUMO's default vType)")
     audit.add_argument("--collisions", type=Path,
                        help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
     audit.add_argument("--tls-states", type=Path,
-                       help="SUMO signal-state file (--save-tls-states output); default: the net's fixed-time "
-                            "programs (other programs: equal priority, with a warning)")
+                       help="SUMO signal-state file, written by an additional file holding <timedEvent "
+                            "type=\"SaveTLSStates\" dest=\"tls.xml\"/>; default: the net's fixed-time programs "
+                            "(other programs: equal priority, with a warning)")
     audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS, help="RSS parameter preset")
     audit.add_argument("--no-signal-rule", action="store_true",
                        help="do not report red-light / avoidable yellow-light entries as violations")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import gc
 import subprocess
 import sys
+import tomllib
 import tracemalloc
 import xml.etree.ElementTree as ET
 
@@ -17,6 +18,7 @@ from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
 from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, read_vehicle_info
+from sumo_rss.rss.signals import SignalStates
 from sumo_rss.sim.session import Session
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
@@ -173,5 +175,33 @@ def test_online_and_offline_audits_agree_at_a_signalised_junction(tmp_path):
     assert proc.returncode == 0, proc.stderr
     episodes = (run / "episodes.csv").read_text()
     assert "intersection-priority" in episodes  # signal-decided situations were audited
+    for name in ("episodes.csv", "violations.csv", "collisions.csv"):
+        assert (tmp_path / "offline" / name).read_bytes() == (run / name).read_bytes(), name
+
+
+def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
+    """SUMO writes signal states through a ``SaveTLSStates`` timed event in an additional file (docs/rss.md). Read
+    with --tls-states, that file gives at every step the states the online audit saw (here: the net's fixed-time
+    program), and the offline audit the online CSVs."""
+    states_file = tmp_path / "tls.xml"
+    additional = tmp_path / "tls.add.xml"
+    additional.write_text(f'<additional><timedEvent type="SaveTLSStates" dest="{states_file}"/></additional>\n')
+    data = tomllib.loads((SCENARIOS / "intersection_tls.toml").read_text(encoding="utf-8"))
+    data["network"] = "intersection_tls"
+    data["sumo"] = {**data.get("sumo", {}), "extra_args": ["--additional-files", str(additional)]}
+    scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
+    proc = _cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+    saved, program = SignalStates(net, states_file), SignalStates(net)
+    times = np.round(np.arange(0.0, 120.0, 0.1), 1)
+    assert len({saved.states(t)["C"] for t in times}) >= 4  # the phases change within the run
+    assert [t for t in times if saved.states(t) != program.states(t)] == []
+    run = tmp_path / "online" / "intersection_tls" / "0"
+    proc = _cli("audit", str(run / "fcd.xml"), "--net", str(net), "--vtypes", str(run / "routes.rou.xml"),
+                "--collisions", str(run / "collisions.xml"), "--tls-states", str(states_file), "--out",
+                str(tmp_path / "offline"))
+    assert proc.returncode == 0, proc.stderr
+    assert "intersection-priority" in (run / "episodes.csv").read_text()
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
         assert (tmp_path / "offline" / name).read_bytes() == (run / name).read_bytes(), name

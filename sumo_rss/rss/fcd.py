@@ -187,7 +187,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               run_id: str = "", signal_rule: bool = True) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes (both gaps negative) of the evaluated pairs. Signal states come from SUMO's
-    ``--save-tls-states`` file when given, else from the network's fixed-time programs."""
+    signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs."""
     reports = read_collisions(collisions) if collisions is not None else None
     try:
         signals = SignalStates(network.path, tls_states)

@@ -4,8 +4,9 @@ The rule (beyond the paper; on by default): a car that crosses the stop line of 
 red, or while it is yellow although the car could have stopped at b_min when it turned yellow, commits a
 violation of its own kind (no pair episode needed).
 
-Offline, signal states come from SUMO's ``--save-tls-states`` output when given, else from the network's own
-programs when they are fixed-time; other programs are unknown, and their links are treated as equal priority.
+Offline, signal states come from SUMO's signal-state output (written by a ``SaveTLSStates`` timed event) when
+given, else from the network's own programs when they are fixed-time; other programs are unknown, and their links
+are treated as equal priority.
 """
 from __future__ import annotations
 
