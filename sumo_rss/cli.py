@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from . import __version__
@@ -128,7 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("fcd", type=Path, help="SUMO FCD file (sumo --fcd-output)")
     audit.add_argument("--net", type=Path, required=True, help="the SUMO network of the run (.net.xml)")
     audit.add_argument("--vtypes", type=Path,
-                       help="route/vType file: vehicle sizes and dynamics, routes (default: SUMO's default vType)")
+                       help="route/vType file: vehicle sizes and dynamics (SUMO's vClass defaults where a vType "
+                            "leaves them out), routes (default: SUMO's built-in vTypes only)")
     audit.add_argument("--collisions", type=Path,
                        help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
     audit.add_argument("--tls-states", type=Path,
@@ -251,12 +253,12 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         raise FcdError(f"{args.net}: network file not found")
     if args.vtypes and not args.vtypes.is_file():
         raise FcdError(f"{args.vtypes}: vType file not found")
-    vehicles = read_vehicle_info(args.vtypes) if args.vtypes else None
+    vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.collisions and not args.collisions.is_file():
         raise FcdError(f"{args.collisions}: collision file not found")
     if args.tls_states and not args.tls_states.is_file():
         raise FcdError(f"{args.tls_states}: signal-state file not found")
-    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics if vehicles else None)
+    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,
@@ -315,12 +317,20 @@ def _cmd_train_intent(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
+    """Warnings as one line (``--debug`` shows Python's form, with the code that warned)."""
+    print(f"sumo-rss: warning: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
                "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
-        return handler(args)
+        with warnings.catch_warnings():
+            if not args.debug:
+                warnings.showwarning = _print_warning
+            return handler(args)
     except SumoRssError as exc:
         if args.debug:
             raise

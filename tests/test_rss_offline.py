@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import gc
+import re
 import subprocess
 import sys
 import tomllib
@@ -74,13 +75,14 @@ def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_s
     on = online.finish()
     assert len(on.collisions) == 1 and on.collisions.blamed[0] == "follower"
     off = audit_fcd(run_dir / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
-                    vehicles=read_vehicle_info(run_dir / "routes.rou.xml"), collisions=run_dir / "collisions.xml",
+                    vehicles=read_vehicle_info(run_dir / "routes.rou.xml", spec.net_file),
+                    collisions=run_dir / "collisions.xml",
                     run_id="crash")
     for name in ("episodes", "violations", "collisions"):
         assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name
     # Without SUMO's collision file the contact is found from overlapping bounding boxes, one step later at most.
     boxes = audit_fcd(run_dir / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
-                      vehicles=read_vehicle_info(run_dir / "routes.rou.xml"), run_id="crash")
+                      vehicles=read_vehicle_info(run_dir / "routes.rou.xml", spec.net_file), run_id="crash")
     assert len(boxes.collisions) == 1 and boxes.collisions.blamed[0] == "follower"
     assert boxes.collisions.time_s[0] == pytest.approx(on.collisions.time_s[0], abs=0.1 + 1e-9)
 
@@ -96,7 +98,7 @@ def _strip(src, dst, keep: set[str]) -> None:
 
 def test_missing_attributes_are_derived(dense_run, tmp_path):
     network = RoadNetwork.from_file(HIGHWAY)
-    vehicles = read_vehicle_info(dense_run / "routes.rou.xml")
+    vehicles = read_vehicle_info(dense_run / "routes.rou.xml", HIGHWAY)
     _strip(dense_run / "fcd.xml", tmp_path / "bare.xml", {"id", "x", "y", "angle", "speed", "lane", "type"})
     full = list(FcdReader(dense_run / "fcd.xml", network, vehicles))
     bare = list(FcdReader(tmp_path / "bare.xml", network, vehicles))
@@ -134,6 +136,45 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
     assert proc.returncode == 2 and "expected <fcd-export>" in proc.stderr
     proc = _cli("audit", str(tmp_path / "nope.xml"), "--net", str(HIGHWAY))
     assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
+
+
+def test_vtypes_are_read_as_sumo_resolves_them(tmp_path):
+    """What a vType leaves out is SUMO's default for its vClass (documented: a truck is 7.1 m x 2.4 m and brakes at
+    4.0 m/s², a bicycle is 0.65 m wide), vTypes inside a distribution count, SUMO's built-in types are known
+    without a file, and a route may be named or written inside its vehicle."""
+    routes = tmp_path / "mixed.rou.xml"
+    routes.write_text("""<routes>
+    <vType id="lorry" vClass="truck"/>
+    <vType id="bike" vClass="bicycle" length="1.8" tau="1.4"/>
+    <vTypeDistribution id="cars"><vType id="small" length="3.5" probability="1"/></vTypeDistribution>
+    <route id="main" edges="hw0 hw1 hw2"/>
+    <vehicle id="a" type="lorry" depart="0" route="main"/>
+    <vehicle id="b" type="bike" depart="0"><route edges="hw1 hw2"/></vehicle>
+    <flow id="f" type="cars" begin="0" end="10" number="2"><route edges="hw0 hw1"/></flow>
+    <trip id="t" depart="0" from="hw0" to="hw2"/>
+</routes>""")
+    info = read_vehicle_info(routes, HIGHWAY)
+    assert info.sizes["lorry"] == (7.1, 2.4) and info.dynamics["lorry"] == (1.0, 4.0)
+    assert info.sizes["bike"] == (1.8, 0.65) and info.dynamics["bike"] == (1.4, 3.0)
+    assert info.sizes["small"] == (3.5, 1.8) and info.sizes["DEFAULT_VEHTYPE"] == (5.0, 1.8)
+    assert read_vehicle_info(None, HIGHWAY).sizes["DEFAULT_BIKETYPE"] == (1.6, 0.65)
+    assert (info.route_of("a"), info.route_of("b"), info.route_of("f.1"), info.route_of("t")) == \
+        (("hw0", "hw1", "hw2"), ("hw1", "hw2"), ("hw0", "hw1"), None)
+
+
+def test_unknown_vtypes_are_named_once_and_bad_vtypes_are_errors(dense_run, tmp_path):
+    reader = FcdReader(dense_run / "fcd.xml", RoadNetwork.from_file(HIGHWAY), read_vehicle_info(None, HIGHWAY))
+    with pytest.warns(UserWarning, match=r"fcd\.xml: vType .* is not defined") as caught:
+        lengths = {float(v) for snapshot in reader for v in snapshot.length}
+    named = [name for w in caught for name in re.search(r"vType (.*) is not", str(w.message)).group(1).split(", ")]
+    assert sorted(named) == ["car", "ego_type", "truck", "van"]  # each once, when it first appears
+    assert lengths == {5.0}  # SUMO's passenger size for every car of the file
+    bad = tmp_path / "bad.rou.xml"
+    bad.write_text('<routes><vType id="car" length="-1"/></routes>')
+    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(bad), "--out",
+                str(tmp_path / "out"))
+    assert proc.returncode == 2
+    assert "sumo-rss: error: " in proc.stderr and "bad.rou.xml: SUMO cannot load its vTypes (Error: " in proc.stderr
 
 
 def test_reader_uses_constant_memory(dense_run, tmp_path):

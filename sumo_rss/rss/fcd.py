@@ -7,6 +7,7 @@ Vehicle sizes come from a vType/route file or SUMO's defaults; collisions from S
 """
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
@@ -22,8 +23,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 
-SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType
-SUMO_DEFAULT_DYNAMICS = (1.0, 4.5)  # tau [s], decel [m/s²]
+SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
 
 
 class FcdError(SumoRssError):
@@ -46,23 +46,32 @@ class VehicleInfo:
         return self.routes.get(flow) if flow != vehicle_id else None
 
 
-def read_vehicle_info(path: Path) -> VehicleInfo:
-    """vTypes (also inside vTypeDistributions), routes, flows and vehicles of a SUMO route/additional file."""
-    info = VehicleInfo()
+def read_vehicle_info(path: Path | None, net_file: Path) -> VehicleInfo:
+    """Sizes and dynamics of every vType as SUMO resolves them (:func:`~sumo_rss.sim.vtypes.sumo_vtypes`: SUMO's
+    built-in types and the vTypes of the route/additional file ``path``, with SUMO's vClass defaults for what they
+    leave out), and the routes of the file's vehicles and flows (a named route or one written inside them)."""
+    from ..sim.vtypes import sumo_vtypes  # libsumo is only imported where SUMO runs
+
+    try:
+        types = sumo_vtypes(net_file, path)
+    except ValueError as exc:
+        raise FcdError(str(exc)) from exc
+    info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
+                       {t: (p.tau, p.decel) for t, p in types.items()})
+    if path is None:
+        return info
     named_routes: dict[str, tuple[str, ...]] = {}
     try:
         for _, elem in ET.iterparse(path, events=("end",)):
-            if elem.tag == "vType":
-                vid = elem.get("id", "")
-                info.sizes[vid] = (float(elem.get("length", SUMO_DEFAULT_SIZE[0])),
-                                   float(elem.get("width", SUMO_DEFAULT_SIZE[1])))
-                info.dynamics[vid] = (float(elem.get("tau", SUMO_DEFAULT_DYNAMICS[0])),
-                                      float(elem.get("decel", SUMO_DEFAULT_DYNAMICS[1])))
-            elif elem.tag == "route" and elem.get("id"):
+            if elem.tag == "route" and elem.get("id"):
                 named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
-            elif elem.tag in ("flow", "vehicle") and elem.get("route") in named_routes:
-                info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
-    except (ET.ParseError, ValueError) as exc:
+            elif elem.tag in ("flow", "vehicle"):
+                inside = elem.find("route")
+                if inside is not None:
+                    info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
+                elif elem.get("route") in named_routes:
+                    info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
+    except ET.ParseError as exc:
         raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
     return info
 
@@ -95,6 +104,7 @@ class FcdReader:
         self.ego_ids = set(ego_ids)
         self._prev: dict[str, tuple[float, int, float]] = {}  # id → (speed, edge, edge-frame lateral position)
         self._prev_time: float | None = None
+        self._unknown_types: set[str] = set()  # vTypes warned about
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
@@ -137,6 +147,12 @@ class FcdReader:
         except UnknownLaneError as exc:
             raise FcdError(f"{where}: {exc}; is --net the network of this run?") from exc
         vtype = np.array([r.get("type", "DEFAULT_VEHTYPE") for r in rows], dtype=str)
+        unknown = set(vtype.tolist()) - self.vehicles.sizes.keys() - self._unknown_types
+        if unknown:
+            self._unknown_types |= unknown
+            warnings.warn(f"{self.path}: vType {', '.join(sorted(unknown))} is not defined (give its route or vType "
+                          f"file); audited at SUMO's passenger size {SUMO_DEFAULT_SIZE[0]:g} m x "
+                          f"{SUMO_DEFAULT_SIZE[1]:g} m", stacklevel=2)
         sizes = [self.vehicles.sizes.get(t, SUMO_DEFAULT_SIZE) for t in vtype]
         length = np.array([s[0] for s in sizes])
         width = np.array([s[1] for s in sizes])
@@ -187,8 +203,11 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               run_id: str = "", signal_rule: bool = True) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes (both gaps negative) of the evaluated pairs. Signal states come from SUMO's
-    signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs."""
+    signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
+    defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`)."""
     reports = read_collisions(collisions) if collisions is not None else None
+    if vehicles is None:
+        vehicles = read_vehicle_info(None, network.path)
     try:
         signals = SignalStates(network.path, tls_states)
     except ValueError as exc:

@@ -35,6 +35,11 @@ _VARS = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VA
 _active: Session | None = None
 
 
+def libsumo_in_use() -> bool:
+    """Whether a Session holds this process's libsumo."""
+    return _active is not None
+
+
 @dataclass(frozen=True)
 class _Static:
     """What does not change while a vehicle is on the road."""

@@ -1,0 +1,74 @@
+"""Vehicle types as SUMO resolves them, for audits of FCD files (no simulation is run).
+
+A vType may leave out its length, width, tau or decel; SUMO then takes the default of its vClass (a truck is
+7.1 m x 2.4 m, a bicycle 1.6 m x 0.65 m), and a vehicle without a type uses one of SUMO's built-in types. Rather than
+keeping a copy of SUMO's tables, :func:`sumo_vtypes` loads the vTypes into libsumo and reads them back.
+"""
+from __future__ import annotations
+
+import subprocess
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import libsumo
+
+from ..errors import SessionError
+from ..sumo_home import sumo_tool
+from . import session
+
+
+@dataclass(frozen=True)
+class VTypeParameters:
+    """What the audit uses of a vType."""
+
+    vclass: str
+    length: float  # [m]
+    width: float  # [m]
+    tau: float  # [s] desired time headway
+    decel: float  # [m/s²] comfortable deceleration
+
+
+def sumo_vtypes(net_file: Path, vtype_file: Path | None = None) -> dict[str, VTypeParameters]:
+    """Every vType SUMO knows after loading ``net_file`` with the vTypes and vType distributions of ``vtype_file``
+    (a route or additional file; its vehicles, trips and routes are left out): SUMO's built-in types and the
+    file's, with SUMO's vClass defaults for what a vType does not set. Starts libsumo for a moment, so no
+    :class:`~sumo_rss.sim.session.Session` may be open in this process. Raises ``ValueError`` naming the file
+    when SUMO rejects a vType."""
+    if session.libsumo_in_use():
+        raise SessionError("vTypes cannot be resolved while a Session is open in this process (libsumo runs one "
+                           "simulation per process)")
+    with tempfile.TemporaryDirectory(prefix="sumo_rss_vtypes_") as folder:
+        additional = Path(folder) / "vtypes.add.xml"
+        root = ET.Element("additional")
+        if vtype_file is not None:
+            try:
+                root.extend(_vtype_elements(ET.parse(vtype_file).getroot()))
+            except ET.ParseError as exc:
+                raise ValueError(f"{vtype_file}: not a readable SUMO route/vType file ({exc})") from exc
+        ET.ElementTree(root).write(additional, encoding="utf-8")
+        args = ["--net-file", str(net_file), "--additional-files", str(additional), "--no-warnings", "true"]
+        try:
+            libsumo.start(["sumo", *args])
+        except libsumo.TraCIException as exc:
+            # libsumo only says "Process Error"; SUMO's own message comes from running the sumo binary.
+            stderr = subprocess.run([str(sumo_tool("sumo")), *args], capture_output=True, text=True,
+                                    check=False).stderr
+            errors = "; ".join(line.strip() for line in stderr.splitlines() if line.startswith("Error"))
+            raise ValueError(f"{vtype_file}: SUMO cannot load its vTypes ({errors or exc})") from exc
+        try:
+            vt = libsumo.vehicletype
+            return {t: VTypeParameters(vt.getVehicleClass(t), vt.getLength(t), vt.getWidth(t), vt.getTau(t),
+                                       vt.getDecel(t)) for t in vt.getIDList()}
+        finally:
+            libsumo.close()
+
+
+def _vtype_elements(elem: ET.Element) -> list[ET.Element]:
+    """The vType and vTypeDistribution elements under ``elem`` (a distribution with the vTypes inside it), in
+    document order."""
+    found = []
+    for child in elem:
+        found.extend([child] if child.tag in ("vType", "vTypeDistribution") else _vtype_elements(child))
+    return found
