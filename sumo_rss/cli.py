@@ -13,12 +13,14 @@ from pathlib import Path
 from . import __version__
 from .errors import SumoRssError
 from .rss.params import PRESETS
+from .scenario import CONTROLLERS
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 
 _RUN_EXAMPLES = """examples:
   sumo-rss run scenarios/highway_dense.toml
+  sumo-rss run scenarios/highway_dense.toml --controller epsilon      # the ego driven by the EPSILON planner
   sumo-rss run scenarios/merge_onramp.toml --seed 3 --duration 60 --out results/ --fcd
 """
 _BATCH_EXAMPLES = """examples:
@@ -26,6 +28,7 @@ _BATCH_EXAMPLES = """examples:
   sumo-rss batch scenarios/default.toml --seeds 0:20 --workers 2
   sumo-rss batch scenarios/highway_dense.toml scenarios/merge_onramp.toml --seeds 1,7,42 --out results/two
   sumo-rss batch scenarios/default.toml --rss-preset ad_rss krauss --out results/presets
+  sumo-rss batch scenarios/highway_dense.toml --seeds 0:5 --controller epsilon sumo mpdm --workers 2
   sumo-rss batch scenarios/default.toml --ray-address auto    # on a Ray cluster (shared results folder)
 """
 _REPORT_EXAMPLES = """examples:
@@ -94,6 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", type=Path, help="scenario TOML file")
     run.add_argument("--seed", type=_non_negative_int, help="random seed (default: the scenario's)")
     run.add_argument("--duration", type=_positive_float, metavar="S", help="simulated seconds (default: the scenario's)")
+    run.add_argument("--controller", choices=CONTROLLERS,
+                     help="who drives the ego: EPSILON, SUMO or the MPDM baseline (default: the scenario's)")
     run.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
     run.add_argument("--fcd", action="store_true",
                      help="also write SUMO's FCD trace (fcd.xml) with accelerations and lateral position/speed")
@@ -113,6 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run on Ray: 'auto', 'host:port' or 'local' (needs the 'ray' extra)")
     batch.add_argument("--rss-preset", nargs="+", choices=PRESETS, metavar="P",
                        help="sweep these RSS presets (replaces the files' rss_preset grid)")
+    batch.add_argument("--controller", nargs="+", choices=CONTROLLERS, metavar="C",
+                       help="sweep these ego controllers: sumo, epsilon, mpdm (replaces the files' controller grid)")
     batch.add_argument("--out", type=Path, help="batch folder (default: results/<name of the first SPEC>)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -186,7 +193,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .batch.spec import Task
     from .scenario import load_scenario
 
-    spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration)
+    spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration,
+                                                       controller=args.controller)
     with tqdm(total=round(spec.duration_s, 3), unit="sim s", disable=args.quiet, file=sys.stderr,
               bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} sim s [{elapsed}<{remaining}]") as bar:
         def on_step(t: float) -> None:
@@ -226,6 +234,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             spec = replace(spec, seeds=tuple(args.seeds))
         if args.rss_preset:
             spec = replace(spec, grid={**spec.grid, "rss_preset": tuple(args.rss_preset)})
+        if args.controller:
+            spec = replace(spec, grid={**spec.grid, "controller": tuple(args.controller)})
         tasks += spec.tasks()
     out = args.out or Path("results") / args.specs[0].stem
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)

@@ -149,8 +149,17 @@ class ScenarioSpec:
     rss: RssSpec
     outputs: OutputsSpec
 
-    def with_overrides(self, *, seed: int | None = None, duration_s: float | None = None) -> ScenarioSpec:
+    def with_overrides(self, *, seed: int | None = None, duration_s: float | None = None,
+                       controller: str | None = None) -> ScenarioSpec:
         spec = self
+        if controller is not None:
+            if controller not in CONTROLLERS:
+                raise ScenarioError(self.source, "ego.controller", f"expected one of {', '.join(CONTROLLERS)}",
+                                    controller)
+            if self.ego is None:
+                raise ScenarioError(self.source, "ego", "expected an [ego] table: the scenario has no ego to drive",
+                                    has_got=False)
+            spec = replace(spec, ego=replace(spec.ego, controller=controller))
         if seed is not None:
             if seed < 0:
                 raise ScenarioError(self.source, "seed", "expected an integer >= 0", seed)

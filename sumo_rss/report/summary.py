@@ -11,11 +11,12 @@ RESPONSIBILITY_CATEGORIES = ["ego", "ego & background", "background", "none"]
 
 
 def read_batch_csv(batch_dir: Path, name: str) -> pd.DataFrame:
-    """A concatenated batch CSV (empty frame if the batch produced none)."""
+    """A concatenated batch CSV (empty frame if the batch produced none). Empty cells stay empty strings (a junction
+    episode has no lateral margin), so such columns are read whole, not guessed chunk by chunk."""
     path = Path(batch_dir) / f"{name}.csv"
     if not path.is_file():
         return pd.DataFrame()
-    return pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str, "variant": str})
+    return pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str, "variant": str}, low_memory=False)
 
 
 def run_label(frame: pd.DataFrame) -> pd.Series:
