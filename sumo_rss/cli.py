@@ -145,6 +145,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "type=\"SaveTLSStates\" dest=\"tls.xml\"/>; default: the net's fixed-time programs "
                             "(other programs: equal priority, with a warning)")
     audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS, help="RSS parameter preset")
+    audit.add_argument("--hold-standing", action="store_true",
+                       help="a car standing still does not accelerate during its response time (CARLA's RSS "
+                            "sensor; [rss] hold_standing in scenarios)")
     audit.add_argument("--no-signal-rule", action="store_true",
                        help="do not report red-light / avoidable yellow-light entries as violations")
     audit.add_argument("--ego", action="append", default=[], metavar="ID",
@@ -268,7 +271,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         raise FcdError(f"{args.collisions}: collision file not found")
     if args.tls_states and not args.tls_states.is_file():
         raise FcdError(f"{args.tls_states}: signal-state file not found")
-    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics)
+    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics, hold_standing=args.hold_standing)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,

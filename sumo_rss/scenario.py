@@ -126,6 +126,7 @@ class RssSpec:
     signal_rule: bool = True  # red-light and avoidable yellow-light entries are violations
     role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
     vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
+    hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
 
 
 @dataclass(frozen=True)
@@ -190,7 +191,8 @@ class ScenarioSpec:
             "demand": {"vtypes": {vt.id: vtype(vt, probability=True) for vt in self.demand.vtypes},
                        "flows": [{**_plain(asdict(f)), "depart_lane": lane(f.depart_lane)}
                                  for f in self.demand.flows]},
-            "rss": {"preset": self.rss.preset, "signal_rule": self.rss.signal_rule, **self.rss.role_overrides,
+            "rss": {"preset": self.rss.preset, "signal_rule": self.rss.signal_rule,
+                    "hold_standing": self.rss.hold_standing, **self.rss.role_overrides,
                     "vtypes": dict(self.rss.vtype_overrides)},
             "outputs": _plain(asdict(self.outputs)),
         }
@@ -428,6 +430,7 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
 def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
     preset = t.string("preset", "ad_rss", choices=PRESETS)
     signal_rule = t.boolean("signal_rule", True)
+    hold_standing = t.boolean("hold_standing", False)
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
     vtype_ids = {v.id for v in demand.vtypes}
     by_vtype = {}
@@ -437,7 +440,7 @@ def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpe
                           name)
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
-    spec = RssSpec(preset, signal_rule, roles, by_vtype)
+    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing)
     # Resolve every class once so that inconsistent overrides fail here, at load time.
     checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
     for role, vtype_id, vt in checks:

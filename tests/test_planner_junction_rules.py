@@ -10,6 +10,7 @@ from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.road.routes import RouteTable
 from sumo_rss.rss.auditor import ParamResolver
+from sumo_rss.rss.params import RssParamArrays
 from sumo_rss.sim.snapshot import WorldSnapshot
 
 def _model(name: str) -> tuple[RoadNetwork, JunctionModel]:
@@ -113,3 +114,22 @@ def test_the_ego_waits_at_the_line_while_a_car_waits_at_red_next_to_its_turn():
     # Still 60 m out at 10 m/s it can stop before the area: if it comes too close later, stopping is its duty.
     coming = ("w", "W_in_1", 60.0, 10.0, ("W_in", "N_out"))
     assert _stop(_snapshot(net, [ego, coming], phase), net, junctions) == NO_STOP
+
+
+def test_with_hold_standing_a_car_standing_at_red_does_not_hold_the_ego_but_a_creeping_one_does():
+    """``[rss] hold_standing`` (CARLA's convention): the car standing at red 1 m before its line is not assumed to
+    accelerate within ρ, so it can stop before the area (it stands) and the ego turns; one creeping at 1 m/s is
+    moving, keeps a_acc and still holds the ego at its line (as in the test above)."""
+    net, junctions = _model("intersection_tls")
+    phase = {"C": "GGgrrrGGgrrr"}
+    ego = ("ego", "S_in_1", 2.0, 0.0, ("S_in", "W_out"))
+    resolver = ParamResolver("ad_rss", hold_standing=True)
+    moving = RssParamArrays.stack([resolver.get("ego", "car")])
+
+    def stop(snapshot):
+        return stop_line(snapshot, 0, net, junctions, RouteTable(net), resolver.arrays(snapshot), moving)
+
+    standing = _snapshot(net, [ego, ("w", "W_in_1", 1.0, 0.0, ("W_in", "N_out"))], phase)
+    assert list(resolver.arrays(standing).lon_accel_max) == [0.0, 0.0]
+    assert stop(standing) == NO_STOP
+    assert stop(_snapshot(net, [ego, ("w", "W_in_1", 1.0, 1.0, ("W_in", "N_out"))], phase)).reason == "rss"

@@ -68,7 +68,8 @@ def param_resolver(spec: ScenarioSpec) -> ParamResolver:
     dynamics = {vt.id: (vt.tau, vt.decel) for vt in spec.demand.vtypes}
     if spec.ego is not None:
         dynamics[EGO_TYPE] = (spec.ego.vehicle.tau, spec.ego.vehicle.decel)
-    return ParamResolver(spec.rss.preset, spec.rss.role_overrides, spec.rss.vtype_overrides, dynamics)
+    return ParamResolver(spec.rss.preset, spec.rss.role_overrides, spec.rss.vtype_overrides, dynamics,
+                         spec.rss.hold_standing)
 
 
 def run_directory(out_dir: Path, task: Task) -> Path:
@@ -163,7 +164,8 @@ def _ego_driver(spec: ScenarioSpec, network: RoadNetwork, resolver: ParamResolve
     from ..planner.driver import EgoDriver
 
     preset = spec.ego.planner.rss_preset
-    planner_params = resolver if preset is None else ParamResolver(preset, {}, {}, resolver.vtype_dynamics)
+    planner_params = resolver if preset is None else ParamResolver(preset, {}, {}, resolver.vtype_dynamics,
+                                                                   resolver.hold_standing)
     return EgoDriver(spec, network, resolver, planner_params)
 
 

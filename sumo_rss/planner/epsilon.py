@@ -148,7 +148,8 @@ class EpsilonPlanner:
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
         ego_params = _row(params, 0)
-        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params)
+        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params,
+                         RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))]))
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
         cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)

@@ -56,10 +56,11 @@ def _time_to_cover(v: float, distance: float, accel: float) -> float:
 
 
 def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions: JunctionModel,
-              routes: RouteTable, params: RssParamArrays) -> StopLine:
+              routes: RouteTable, params: RssParamArrays, ego_moving: RssParamArrays | None = None) -> StopLine:
     """Whether and where the ego (snapshot row ``ego``) must stop before the junction ahead; ``params`` are every
     snapshot row's RSS parameters: the ego stops for yellow if it can at its b_min, and for anything if it can at
-    its b_max."""
+    its b_max. ``ego_moving`` [1]: the ego's parameters once it moves, for its crossing (default: its row of
+    ``params``, which ``ParamResolver.hold_standing`` gives a_acc = 0 while the ego stands)."""
     b_min, b_max = float(params.lon_brake_min[ego]), float(params.lon_brake_max[ego])
     lanes = network.lane_indices(snapshot.lane_id)
     next_edge = next_route_edge(routes.remaining(snapshot), network.lane_edge[lanes])
@@ -100,7 +101,8 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
         return StopLine(distance, "yield")
     # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
     # virtual line now without being able to stop before the area: once the ego closes in, the ego must brake.
-    now = _pair_safety(snapshot, ego, own, ego_pos, v, fl, cars, f_pos, f_v, priority, junctions, params)
+    ego_now = params.take(np.array([ego]))
+    now = _pair_safety(snapshot, ego, own, ego_pos, v, fl, cars, f_pos, f_v, priority, junctions, ego_now, params)
     ahead_unstoppable = now.b_in_front & now.in_front & ~now.able_to_stop
     waiting = (f_pos < start) & ((f_v < MIN_SPEED) | ahead_unstoppable)
     if np.any(waiting):
@@ -109,7 +111,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
         v_x = np.sqrt(v * v + 2.0 * CLEAR_ACCEL * (x - ego_pos))
         w = np.flatnonzero(waiting)
         crossing = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size),
-                                priority[w], junctions, params)
+                                priority[w], junctions, ego_now if ego_moving is None else ego_moving, params)
         on_way = area_distances(junctions, own, fl[w], x, float(snapshot.length[ego]))[1] > 0.0  # not yet left it
         if np.any(on_way & ~crossing.safe):
             return StopLine(distance, "rss")
@@ -118,12 +120,13 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
 
 def _pair_safety(snapshot: WorldSnapshot, ego: int, own: int, ego_pos: Any, ego_v: Any, links: np.ndarray,
                  cars: np.ndarray, car_pos: np.ndarray, car_v: np.ndarray, priority: np.ndarray,
-                 junctions: JunctionModel, params: RssParamArrays) -> IntersectionSafety:
+                 junctions: JunctionModel, ego_params: RssParamArrays, params: RssParamArrays) -> IntersectionSafety:
     """rss.md §4 between the ego on its link ``own`` (front bumper at ``ego_pos`` [m] along it, speed ``ego_v``
-    [m/s]; arrays [k, 1] give k states) and ``cars`` on ``links`` (front bumpers at ``car_pos``, speeds
-    ``car_v``), per their conflict area; ``priority`` PRIORITY_A: the ego's, PRIORITY_B: the car's."""
+    [m/s]; arrays [k, 1] give k states; RSS parameters ``ego_params`` [1]) and ``cars`` on ``links`` (front bumpers
+    at ``car_pos``, speeds ``car_v``; parameters: their rows of ``params``), per their conflict area;
+    ``priority`` PRIORITY_A: the ego's, PRIORITY_B: the car's."""
     length, o_len = float(snapshot.length[ego]), snapshot.length[cars]
     enter, leave = area_distances(junctions, own, links, ego_pos, length)
     o_enter, o_leave = area_distances(junctions, links, own, car_pos, o_len)
-    return intersection_safety(ego_v, enter, leave, length, params.take(np.array([ego])), car_v, o_enter, o_leave,
-                               o_len, params.take(cars), priority)
+    return intersection_safety(ego_v, enter, leave, length, ego_params, car_v, o_enter, o_leave, o_len,
+                               params.take(cars), priority)

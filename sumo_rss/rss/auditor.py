@@ -6,7 +6,7 @@ proper response and blame (rss.md §3-§6).
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,12 +47,16 @@ class CollisionInput:
 
 
 class ParamResolver:
-    """RSS parameters per (vehicle class, vType), resolved once and cached (rss.md §1)."""
+    """RSS parameters per (vehicle class, vType), resolved once and cached (rss.md §1). With ``hold_standing``
+    (CARLA's RSS sensor does this), a car standing still in a snapshot is not assumed to accelerate during its
+    response time (a_acc = 0 in :meth:`arrays`): a car waiting at a red light 1 m before a junction is not counted
+    as able to enter it within ρ."""
 
     def __init__(self, preset: str = "ad_rss", role_overrides: Mapping[str, Mapping[str, float]] | None = None,
                  vtype_overrides: Mapping[str, Mapping[str, float]] | None = None,
-                 vtype_dynamics: Mapping[str, tuple[float, float]] | None = None):
+                 vtype_dynamics: Mapping[str, tuple[float, float]] | None = None, hold_standing: bool = False):
         self.preset = preset
+        self.hold_standing = hold_standing
         self.role_overrides = dict(role_overrides or {})
         self.vtype_overrides = dict(vtype_overrides or {})
         self.vtype_dynamics = dict(vtype_dynamics or {})  # vType id → (tau [s], decel [m/s²])
@@ -75,8 +79,10 @@ class ParamResolver:
     def arrays(self, snapshot: WorldSnapshot) -> RssParamArrays:
         keys = np.char.add(np.char.add(snapshot.vclass.astype(str), "\x1f"), snapshot.vtype.astype(str))
         unique, inverse = np.unique(keys, return_inverse=True)
-        table = RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique])
-        return table.take(inverse)
+        table = RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique]).take(inverse)
+        if self.hold_standing:
+            table = replace(table, lon_accel_max=np.where(snapshot.speed == 0.0, 0.0, table.lon_accel_max))
+        return table
 
 
 @dataclass
