@@ -78,6 +78,14 @@ def _non_negative_int(text: str) -> int:
     return int(text)
 
 
+def _file_list(text: str) -> list[Path]:
+    """``a.rou.xml,b.add.xml`` → paths (SUMO's comma-separated file lists)."""
+    files = [Path(part) for part in text.split(",") if part]
+    if not files:
+        raise argparse.ArgumentTypeError(f"expected one or more comma-separated files, got {text!r}")
+    return files
+
+
 def build_parser() -> argparse.ArgumentParser:
     # --debug is accepted before or after the command; SUPPRESS keeps a sub-command from resetting it.
     common = argparse.ArgumentParser(add_help=False)
@@ -135,9 +143,10 @@ def build_parser() -> argparse.ArgumentParser:
                            epilog=_AUDIT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     audit.add_argument("fcd", type=Path, help="SUMO FCD file (sumo --fcd-output)")
     audit.add_argument("--net", type=Path, required=True, help="the SUMO network of the run (.net.xml)")
-    audit.add_argument("--vtypes", type=Path,
-                       help="route/vType file: vehicle sizes and dynamics (SUMO's vClass defaults where a vType "
-                            "leaves them out), routes (default: SUMO's built-in vTypes only)")
+    audit.add_argument("--vtypes", type=_file_list, metavar="FILE[,FILE...]",
+                       help="route/vType file(s) of the run, comma-separated as for sumo -r: vehicle sizes and "
+                            "dynamics (SUMO's vClass defaults where a vType leaves them out), routes (default: "
+                            "SUMO's built-in vTypes only)")
     audit.add_argument("--collisions", type=Path,
                        help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
     audit.add_argument("--tls-states", type=Path,
@@ -264,8 +273,9 @@ def _cmd_audit(args: argparse.Namespace) -> int:
 
     if not args.net.is_file():
         raise FcdError(f"{args.net}: network file not found")
-    if args.vtypes and not args.vtypes.is_file():
-        raise FcdError(f"{args.vtypes}: vType file not found")
+    for path in args.vtypes or ():
+        if not path.is_file():
+            raise FcdError(f"{path}: vType file not found")
     vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.collisions and not args.collisions.is_file():
         raise FcdError(f"{args.collisions}: collision file not found")

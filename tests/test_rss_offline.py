@@ -175,7 +175,7 @@ def test_unknown_vtypes_are_named_once_and_bad_vtypes_are_errors(dense_run, tmp_
     proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(bad), "--out",
                 str(tmp_path / "out"))
     assert proc.returncode == 2
-    assert "sumo-rss: error: " in proc.stderr and "bad.rou.xml: SUMO cannot load its vTypes (Error: " in proc.stderr
+    assert "sumo-rss: error: " in proc.stderr and "bad.rou.xml: SUMO cannot load the vTypes (Error: " in proc.stderr
 
 
 def test_reader_uses_constant_memory(dense_run, tmp_path):
@@ -269,3 +269,15 @@ def test_hold_standing_is_the_same_online_and_offline_and_counts_fewer_queued_da
         assert (tmp_path / "held" / name).read_bytes() == (run / name).read_bytes(), name
     held, plain = (pd.read_csv(tmp_path / out / "episodes.csv").duration_s.sum() for out in ("held", "plain"))
     assert held < 0.9 * plain  # 1130 s against 1434 s of danger, summed over the episodes
+
+
+def test_vtypes_and_routes_may_come_from_several_files(dense_run, tmp_path):
+    """As with sumo -r a,b: vTypes in one file, a named route in another, the vehicle in a third."""
+    (tmp_path / "types.add.xml").write_text('<additional><vType id="lorry" vClass="truck"/></additional>')
+    (tmp_path / "route.rou.xml").write_text('<routes><route id="main" edges="hw0 hw1 hw2"/></routes>')
+    (tmp_path / "cars.rou.xml").write_text('<routes><vehicle id="a" type="lorry" depart="0" route="main"/></routes>')
+    info = read_vehicle_info([tmp_path / n for n in ("types.add.xml", "route.rou.xml", "cars.rou.xml")], HIGHWAY)
+    assert info.sizes["lorry"] == (7.1, 2.4) and info.route_of("a") == ("hw0", "hw1", "hw2")
+    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
+                f"{dense_run / 'routes.rou.xml'},{tmp_path / 'nope.xml'}", "--out", str(tmp_path / "out"))
+    assert proc.returncode == 2 and "nope.xml: vType file not found" in proc.stderr

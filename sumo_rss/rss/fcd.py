@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -46,33 +46,34 @@ class VehicleInfo:
         return self.routes.get(flow) if flow != vehicle_id else None
 
 
-def read_vehicle_info(path: Path | None, net_file: Path) -> VehicleInfo:
+def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> VehicleInfo:
     """Sizes and dynamics of every vType as SUMO resolves them (:func:`~sumo_rss.sim.vtypes.sumo_vtypes`: SUMO's
-    built-in types and the vTypes of the route/additional file ``path``, with SUMO's vClass defaults for what they
-    leave out), and the routes of the file's vehicles and flows (a named route or one written inside them)."""
+    built-in types and the vTypes of the route/additional file(s) ``paths``, with SUMO's vClass defaults for what
+    they leave out), and the routes of the files' vehicles and flows (a named route, also one of an earlier file,
+    or one written inside them)."""
     from ..sim.vtypes import sumo_vtypes  # libsumo is only imported where SUMO runs
 
+    files = [] if paths is None else [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     try:
-        types = sumo_vtypes(net_file, path)
+        types = sumo_vtypes(net_file, files)
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
                        {t: (p.tau, p.decel) for t, p in types.items()})
-    if path is None:
-        return info
     named_routes: dict[str, tuple[str, ...]] = {}
-    try:
-        for _, elem in ET.iterparse(path, events=("end",)):
-            if elem.tag == "route" and elem.get("id"):
-                named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
-            elif elem.tag in ("flow", "vehicle"):
-                inside = elem.find("route")
-                if inside is not None:
-                    info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
-                elif elem.get("route") in named_routes:
-                    info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
-    except ET.ParseError as exc:
-        raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+    for path in files:
+        try:
+            for _, elem in ET.iterparse(path, events=("end",)):
+                if elem.tag == "route" and elem.get("id"):
+                    named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
+                elif elem.tag in ("flow", "vehicle"):
+                    inside = elem.find("route")
+                    if inside is not None:
+                        info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
+                    elif elem.get("route") in named_routes:
+                        info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
+        except ET.ParseError as exc:
+            raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
     return info
 
 

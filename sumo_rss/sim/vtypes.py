@@ -10,6 +10,7 @@ import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 
 import libsumo
@@ -30,23 +31,23 @@ class VTypeParameters:
     decel: float  # [m/s²] comfortable deceleration
 
 
-def sumo_vtypes(net_file: Path, vtype_file: Path | None = None) -> dict[str, VTypeParameters]:
-    """Every vType SUMO knows after loading ``net_file`` with the vTypes and vType distributions of ``vtype_file``
-    (a route or additional file; its vehicles, trips and routes are left out): SUMO's built-in types and the
-    file's, with SUMO's vClass defaults for what a vType does not set. Starts libsumo for a moment, so no
-    :class:`~sumo_rss.sim.session.Session` may be open in this process. Raises ``ValueError`` naming the file
-    when SUMO rejects a vType."""
+def sumo_vtypes(net_file: Path, vtype_files: Sequence[Path] = ()) -> dict[str, VTypeParameters]:
+    """Every vType SUMO knows after loading ``net_file`` with the vTypes and vType distributions of ``vtype_files``
+    (route or additional files, in SUMO's order; their vehicles, trips and routes are left out): SUMO's built-in
+    types and the files', with SUMO's vClass defaults for what a vType does not set. Starts libsumo for a moment,
+    so no :class:`~sumo_rss.sim.session.Session` may be open in this process. Raises ``ValueError`` naming the
+    file(s) when SUMO rejects a vType."""
     if session.libsumo_in_use():
         raise SessionError("vTypes cannot be resolved while a Session is open in this process (libsumo runs one "
                            "simulation per process)")
     with tempfile.TemporaryDirectory(prefix="sumo_rss_vtypes_") as folder:
         additional = Path(folder) / "vtypes.add.xml"
         root = ET.Element("additional")
-        if vtype_file is not None:
+        for path in vtype_files:
             try:
-                root.extend(_vtype_elements(ET.parse(vtype_file).getroot()))
+                root.extend(_vtype_elements(ET.parse(path).getroot()))
             except ET.ParseError as exc:
-                raise ValueError(f"{vtype_file}: not a readable SUMO route/vType file ({exc})") from exc
+                raise ValueError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
         ET.ElementTree(root).write(additional, encoding="utf-8")
         args = ["--net-file", str(net_file), "--additional-files", str(additional), "--no-warnings", "true"]
         try:
@@ -56,7 +57,8 @@ def sumo_vtypes(net_file: Path, vtype_file: Path | None = None) -> dict[str, VTy
             stderr = subprocess.run([str(sumo_tool("sumo")), *args], capture_output=True, text=True,
                                     check=False).stderr
             errors = "; ".join(line.strip() for line in stderr.splitlines() if line.startswith("Error"))
-            raise ValueError(f"{vtype_file}: SUMO cannot load its vTypes ({errors or exc})") from exc
+            names = ", ".join(str(p) for p in vtype_files) or str(net_file)
+            raise ValueError(f"{names}: SUMO cannot load the vTypes ({errors or exc})") from exc
         try:
             vt = libsumo.vehicletype
             return {t: VTypeParameters(vt.getVehicleClass(t), vt.getLength(t), vt.getWidth(t), vt.getTau(t),
