@@ -30,7 +30,8 @@ def _queue(net: RoadNetwork, rear_speed: float) -> WorldSnapshot:
                          lat_speed=zero, length=np.full(2, LENGTH), width=np.full(2, 1.8),
                          lane_id=np.array(["hw0_1"] * 2), edge_id=np.array(["hw0"] * 2), lane_index=np.ones(2, int),
                          lane_pos=s, lat_pos=zero, vclass=np.array(["background"] * 2), vtype=np.array(["car"] * 2),
-                         signals=np.zeros(2, int), route_index=np.zeros(2, int), route_edges=(("hw0", "hw1", "hw2"),) * 2)
+                         signals=np.zeros(2, int), route_index=np.zeros(2, int),
+                         route_edges=(("hw0", "hw1", "hw2"),) * 2)
 
 
 def _pairs(net: RoadNetwork, hold: bool, rear_speed: float):

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import tomllib
 import tracemalloc
+import warnings
 import xml.etree.ElementTree as ET
 
 import libsumo
@@ -22,6 +23,7 @@ from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
 from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, read_vehicle_info
 from sumo_rss.rss.signals import SignalStates
 from sumo_rss.sim.session import Session
+from sumo_rss.sumo_home import sumo_tool
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 
@@ -281,3 +283,20 @@ def test_vtypes_and_routes_may_come_from_several_files(dense_run, tmp_path):
     proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
                 f"{dense_run / 'routes.rou.xml'},{tmp_path / 'nope.xml'}", "--out", str(tmp_path / "out"))
     assert proc.returncode == 2 and "nope.xml: vType file not found" in proc.stderr
+
+
+def test_instantaneous_lane_changes_are_named_once(dense_run, tmp_path):
+    """SUMO without --lanechange.duration moves a car a lane width sideways in one step: the reader warns once.
+    The session's FCD (continuous lane changes) gives no warning."""
+    network = RoadNetwork.from_file(HIGHWAY)
+    vehicles = read_vehicle_info(dense_run / "routes.rou.xml", HIGHWAY)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(list(FcdReader(dense_run / "fcd.xml", network, vehicles))) == 600
+    subprocess.run([str(sumo_tool("sumo")), "--net-file", str(HIGHWAY), "--route-files",
+                    str(dense_run / "routes.rou.xml"), "--step-length", "0.1", "--end", "60", "--no-step-log", "true",
+                    "--no-warnings", "true", "--fcd-output", str(tmp_path / "jumps.xml")], check=True,
+                   capture_output=True)
+    with pytest.warns(UserWarning, match=r"jumps\.xml: .* moves 3\.\d+ m sideways in one 0\.1 s step") as caught:
+        list(FcdReader(tmp_path / "jumps.xml", network, vehicles))
+    assert len([w for w in caught if "sideways" in str(w.message)]) == 1

@@ -23,6 +23,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 
+JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
 
 
@@ -106,6 +107,7 @@ class FcdReader:
         self._prev: dict[str, tuple[float, int, float]] = {}  # id → (speed, edge, edge-frame lateral position)
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
+        self._warned_jump = False  # about instantaneous lane changes
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
@@ -125,6 +127,18 @@ class FcdReader:
         except ET.ParseError as exc:
             where = f"after time step {time} s" if time is not None else "before the first time step"
             raise FcdError(f"{self.path}: malformed or truncated FCD {where} ({exc})") from exc
+
+    def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, dt: float, time: float) -> None:
+        """Warn once per file when a car moves sideways faster than any car can (``JUMP_SPEED``): SUMO changed its
+        lane in one step, so lateral speeds at such steps are not physical."""
+        jumps = np.flatnonzero(np.abs(lat_moved) > JUMP_SPEED * dt)
+        if jumps.size and not self._warned_jump:
+            self._warned_jump = True
+            k = int(jumps[0])
+            warnings.warn(f"{self.path}: {ids[k]} moves {abs(lat_moved[k]):.2f} m sideways in one {dt:g} s step at "
+                          f"{time:g} s: its lane changes are instantaneous (SUMO without --lanechange.duration or "
+                          "--lateral-resolution), and the lateral speeds of such steps are not physical",
+                          stacklevel=3)
 
     def _snapshot(self, step: ET.Element, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
@@ -175,17 +189,17 @@ class FcdReader:
         edge_lat = self.network.lane_offset[lane] + lat_pos
         accel, lat_speed = optional("acceleration"), optional("speedLat")
         dt = time - self._prev_time if self._prev_time is not None else None
-        if accel is None or lat_speed is None:
-            prev = [self._prev.get(v) for v in ids]
-            seen = np.array([p is not None for p in prev], dtype=bool)
-            prev_speed = np.array([p[0] if p else 0.0 for p in prev])
-            prev_edge = np.array([p[1] if p else -1 for p in prev])
-            prev_lat = np.array([p[2] if p else 0.0 for p in prev])
-            if accel is None:
-                accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
-            if lat_speed is None:
-                same_edge = seen & (prev_edge == edge)
-                lat_speed = np.where(same_edge, (edge_lat - prev_lat) / dt, 0.0) if dt else np.zeros(len(ids))
+        prev = [self._prev.get(v) for v in ids]
+        seen = np.array([p is not None for p in prev], dtype=bool)
+        prev_speed = np.array([p[0] if p else 0.0 for p in prev])
+        same_edge = seen & (np.array([p[1] if p else -1 for p in prev]) == edge)
+        lat_moved = np.where(same_edge, edge_lat - np.array([p[2] if p else 0.0 for p in prev]), 0.0)  # [m]
+        if dt:
+            self._warn_lane_jumps(ids, lat_moved, dt, time)
+        if accel is None:
+            accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
+        if lat_speed is None:
+            lat_speed = lat_moved / dt if dt else np.zeros(len(ids))
         self._prev = {v: (s, int(e), lt) for v, s, e, lt in zip(ids, speed, edge, edge_lat)}
         self._prev_time = time
         is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)
