@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import gc
+import json
 import re
 import subprocess
 import sys
@@ -269,6 +270,9 @@ def test_hold_standing_is_the_same_online_and_offline_and_counts_fewer_queued_da
         assert proc.returncode == 0, proc.stderr
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
         assert (tmp_path / "held" / name).read_bytes() == (run / name).read_bytes(), name
+    for out, said in ((run, True), (tmp_path / "held", True), (tmp_path / "plain", None)):
+        params = json.loads((out / "rss_params.json").read_text())
+        assert {p.get("hold_standing") for p in params.values()} == {said}
     held, plain = (pd.read_csv(tmp_path / out / "episodes.csv").duration_s.sum() for out in ("held", "plain"))
     assert held < 0.9 * plain  # 1130 s against 1434 s of danger, summed over the episodes
 

@@ -73,8 +73,10 @@ class ParamResolver:
         return self._cache[key]
 
     def resolved(self) -> dict[str, dict[str, float]]:
-        """Every parameter set used so far, keyed 'class/vType' (written next to the results)."""
-        return {f"{c}/{t}": p.to_dict() for (c, t), p in sorted(self._cache.items())}
+        """Every parameter set used so far, keyed 'class/vType' (written next to the results); with
+        ``hold_standing`` each set also says so (its a_acc is 0 whenever that car stands)."""
+        held = {"hold_standing": True} if self.hold_standing else {}
+        return {f"{c}/{t}": {**p.to_dict(), **held} for (c, t), p in sorted(self._cache.items())}
 
     def arrays(self, snapshot: WorldSnapshot) -> RssParamArrays:
         keys = np.char.add(np.char.add(snapshot.vclass.astype(str), "\x1f"), snapshot.vtype.astype(str))
