@@ -9,8 +9,8 @@ from __future__ import annotations
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import libsumo
@@ -24,7 +24,6 @@ from . import session
 class VTypeParameters:
     """What the audit uses of a vType."""
 
-    vclass: str
     length: float  # [m]
     width: float  # [m]
     tau: float  # [s] desired time headway
@@ -61,8 +60,8 @@ def sumo_vtypes(net_file: Path, vtype_files: Sequence[Path] = ()) -> dict[str, V
             raise ValueError(f"{names}: SUMO cannot load the vTypes ({errors or exc})") from exc
         try:
             vt = libsumo.vehicletype
-            return {t: VTypeParameters(vt.getVehicleClass(t), vt.getLength(t), vt.getWidth(t), vt.getTau(t),
-                                       vt.getDecel(t)) for t in vt.getIDList()}
+            return {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
+                    for t in vt.getIDList()}
         finally:
             libsumo.close()
 
