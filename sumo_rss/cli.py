@@ -38,6 +38,8 @@ _AUDIT_EXAMPLES = """examples:
   sumo-rss audit results/merge_onramp/0/fcd.xml --net networks/merge/merge.net.xml \\
       --vtypes results/merge_onramp/0/routes.rou.xml --collisions results/merge_onramp/0/collisions.xml
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
+  sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
+  (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
 """
 _NETS_EXAMPLES = """examples:
   sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
