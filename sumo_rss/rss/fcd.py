@@ -55,26 +55,28 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
     from ..sim.vtypes import sumo_vtypes  # libsumo is only imported where SUMO runs
 
     files = [] if paths is None else [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
+    documents = []
+    for path in files:
+        try:
+            documents.append(ET.parse(path).getroot())
+        except ET.ParseError as exc:
+            raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
     try:
-        types = sumo_vtypes(net_file, files)
+        types = sumo_vtypes(net_file, documents, ", ".join(str(p) for p in files))
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
                        {t: (p.tau, p.decel) for t, p in types.items()})
     named_routes: dict[str, tuple[str, ...]] = {}
-    for path in files:
-        try:
-            for _, elem in ET.iterparse(path, events=("end",)):
-                if elem.tag == "route" and elem.get("id"):
-                    named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
-                elif elem.tag in ("flow", "vehicle"):
-                    inside = elem.find("route")
-                    if inside is not None:
-                        info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
-                    elif elem.get("route") in named_routes:
-                        info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
-        except ET.ParseError as exc:
-            raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+    for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
+        if elem.tag == "route" and elem.get("id"):
+            named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
+        elif elem.tag in ("flow", "vehicle"):
+            inside = elem.find("route")
+            if inside is not None:
+                info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
+            elif elem.get("route") in named_routes:
+                info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
     return info
 
 

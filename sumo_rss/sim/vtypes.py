@@ -30,23 +30,20 @@ class VTypeParameters:
     decel: float  # [m/s²] comfortable deceleration
 
 
-def sumo_vtypes(net_file: Path, vtype_files: Sequence[Path] = ()) -> dict[str, VTypeParameters]:
-    """Every vType SUMO knows after loading ``net_file`` with the vTypes and vType distributions of ``vtype_files``
-    (route or additional files, in SUMO's order; their vehicles, trips and routes are left out): SUMO's built-in
-    types and the files', with SUMO's vClass defaults for what a vType does not set. Starts libsumo for a moment,
-    so no :class:`~sumo_rss.sim.session.Session` may be open in this process. Raises ``ValueError`` naming the
-    file(s) when SUMO rejects a vType."""
+def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: str = "") -> dict[str, VTypeParameters]:
+    """Every vType SUMO knows after loading ``net_file`` with the vTypes and vType distributions of ``documents``
+    (the roots of parsed route or additional files, in SUMO's order; their vehicles, trips and routes are left
+    out): SUMO's built-in types and the files', with SUMO's vClass defaults for what a vType does not set. Starts
+    libsumo for a moment, so no :class:`~sumo_rss.sim.session.Session` may be open in this process. Raises
+    ``ValueError`` naming ``source`` (the files) when SUMO rejects a vType."""
     if session.libsumo_in_use():
         raise SessionError("vTypes cannot be resolved while a Session is open in this process (libsumo runs one "
                            "simulation per process)")
     with tempfile.TemporaryDirectory(prefix="sumo_rss_vtypes_") as folder:
         additional = Path(folder) / "vtypes.add.xml"
         root = ET.Element("additional")
-        for path in vtype_files:
-            try:
-                root.extend(_vtype_elements(ET.parse(path).getroot()))
-            except ET.ParseError as exc:
-                raise ValueError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+        for document in documents:
+            root.extend(_vtype_elements(document))
         ET.ElementTree(root).write(additional, encoding="utf-8")
         args = ["--net-file", str(net_file), "--additional-files", str(additional), "--no-warnings", "true"]
         try:
@@ -56,8 +53,7 @@ def sumo_vtypes(net_file: Path, vtype_files: Sequence[Path] = ()) -> dict[str, V
             stderr = subprocess.run([str(sumo_tool("sumo")), *args], capture_output=True, text=True,
                                     check=False).stderr
             errors = "; ".join(line.strip() for line in stderr.splitlines() if line.startswith("Error"))
-            names = ", ".join(str(p) for p in vtype_files) or str(net_file)
-            raise ValueError(f"{names}: SUMO cannot load the vTypes ({errors or exc})") from exc
+            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({errors or exc})") from exc
         try:
             vt = libsumo.vehicletype
             return {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
