@@ -82,8 +82,8 @@ def apply_variant(spec: ScenarioSpec, values: dict) -> ScenarioSpec:
                               probability=min(1.0, f.probability * scale) if f.probability is not None else None)
                       for f in spec.demand.flows)
         spec = replace(spec, demand=replace(spec.demand, flows=flows))
-    if "controller" in values and spec.ego is not None:
-        spec = replace(spec, ego=replace(spec.ego, controller=values["controller"]))
+    if "controller" in values and spec.ego is not None:  # a scenario without an ego runs as it is
+        spec = spec.with_overrides(controller=values["controller"])
     return spec
 
 
