@@ -1,6 +1,9 @@
 """LearnedBelief: the network's belief where lanes branch, with the memory of past positions and signals."""
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -97,3 +100,17 @@ def test_the_network_is_used_where_the_turns_are_within_reach_as_in_its_training
     probs, used = belief.lateral_probabilities(snap, np.arange(2), net.lane_indices(np.array(["S_in_0"] * 2)))
     assert used.tolist() == [False, True]
     np.testing.assert_allclose(probs[1].sum(), 1.0)
+
+
+def test_the_planner_loads_the_network_only_on_networks_where_lanes_branch():
+    """A network where no lane branches or ends never asks the intention network, so torch is not imported (a
+    fresh interpreter: the other tests here import it); merges and junctions get the learned belief."""
+    probe = ("import sys; from sumo_rss.planner.epsilon import EpsilonPlanner; from sumo_rss.rss.auditor import "
+             "ParamResolver; from sumo_rss.road.network import RoadNetwork; from sumo_rss.scenario import "
+             "networks_root; name = sys.argv[1]; planner = EpsilonPlanner(RoadNetwork.from_file(networks_root() / "
+             "name / f'{name}.net.xml'), ParamResolver()); print(planner.belief is not None, 'torch' in sys.modules)")
+    seen = {}
+    for name in ("highway", "merge", "intersection_tls"):
+        run = subprocess.run([sys.executable, "-c", probe, name], capture_output=True, text=True, check=True)
+        seen[name] = run.stdout.split()
+    assert seen == {"highway": ["False", "False"], "merge": ["True", "True"], "intersection_tls": ["True", "True"]}

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,13 +35,15 @@ from .behavior.intention import rule_belief
 from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
-from .intention.belief import LearnedBelief
-from .intention.estimator import load_estimator
+from .intention.features import network_branches
 from .junction_rules import stop_line
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
 from .road_frame import RoadFrame
+
+if TYPE_CHECKING:
+    from .intention.belief import LearnedBelief
 
 MODES = ("epsilon", "mpdm")
 BACKUP = "backup"
@@ -115,8 +118,7 @@ class EpsilonPlanner:
         self._last_centre: tuple[WorldSnapshot, int, RoadFrame, tuple[np.ndarray, ...]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
-        estimator = load_estimator() if config.mode == "epsilon" and config.intention_net else None
-        self.belief = LearnedBelief(network, estimator) if estimator is not None else None
+        self.belief = _learned_belief(network) if config.mode == "epsilon" and config.intention_net else None
         self.motion = MotionLayer(config.motion, config.output_step) if config.motion.enabled else None
 
     # -----------------------------------------------------------------------------------------------------
@@ -399,6 +401,18 @@ class EpsilonPlanner:
         agents = (sim.s[r, :, 1:], sim.d[r, :, 1:], sim.heading[r, :, 1:], vehicles.length[1:], vehicles.width[1:])
         return MotionInput(frame, now, sim.t, ego, float(vehicles.length[0]), float(vehicles.width[0]), agents,
                            float(vehicles.s[0]) + stop_distance)
+
+
+def _learned_belief(network: RoadNetwork) -> LearnedBelief | None:
+    """The intention network's belief (None if its weights are unusable), or None on a network where no lane
+    branches or ends, which never asks it: torch is then not even imported (~2 s saved per run)."""
+    if not network_branches(network):
+        return None
+    from .intention.belief import LearnedBelief
+    from .intention.estimator import load_estimator
+
+    estimator = load_estimator()
+    return LearnedBelief(network, estimator) if estimator is not None else None
 
 
 def _speed_reach(v: float) -> float:

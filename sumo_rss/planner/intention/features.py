@@ -54,6 +54,12 @@ def lanes_branch(lateral: np.ndarray, mask: np.ndarray, to_lane_end: np.ndarray)
     return (np.sum(mask & (lateral == KEEP), axis=1) > 1) | np.isfinite(to_lane_end)
 
 
+def network_branches(network: RoadNetwork) -> bool:
+    """Whether any lane of ``network`` has several successors or ends (an acceleration lane): otherwise no agent's
+    lane ever branches (:func:`lanes_branch`) and the intention network is never asked."""
+    return bool(np.any(network.lane_ends)) or any(len(successors) > 1 for successors in network.lane_successors)
+
+
 def to_agent_frame(px: np.ndarray, py: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
     """Points (px, py) [m], shaped [n, ...], in the frames of n agents at (x, y, heading) → [n, ..., 2]."""
     extra = (slice(None),) + (None,) * (np.ndim(px) - 1)
