@@ -106,7 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
                          epilog=_RUN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("scenario", type=Path, help="scenario TOML file")
     run.add_argument("--seed", type=_non_negative_int, help="random seed (default: the scenario's)")
-    run.add_argument("--duration", type=_positive_float, metavar="S", help="simulated seconds (default: the scenario's)")
+    run.add_argument("--duration", type=_positive_float, metavar="S",
+                     help="simulated seconds (default: the scenario's)")
     run.add_argument("--controller", choices=CONTROLLERS,
                      help="who drives the ego: EPSILON, SUMO or the MPDM baseline (default: the scenario's)")
     run.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
@@ -150,12 +151,15 @@ def build_parser() -> argparse.ArgumentParser:
                             "dynamics (SUMO's vClass defaults where a vType leaves them out), routes (default: "
                             "SUMO's built-in vTypes only)")
     audit.add_argument("--collisions", type=Path,
-                       help="SUMO collision-output file (default: collisions from overlapping bounding boxes)")
+                       help="SUMO collision-output file (default: collisions from overlapping bounding boxes; a "
+                            "car that SUMO's default --collision.action teleport moves away never overlaps, so give "
+                            "the file or run sumo with --collision.action warn)")
     audit.add_argument("--tls-states", type=Path,
                        help="SUMO signal-state file, written by an additional file holding <timedEvent "
                             "type=\"SaveTLSStates\" dest=\"tls.xml\"/>; default: the net's fixed-time programs "
                             "(other programs: equal priority, with a warning)")
-    audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS, help="RSS parameter preset")
+    audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS,
+                       help="RSS parameter preset (default: ad_rss; docs/rss.md lists them)")
     audit.add_argument("--hold-standing", action="store_true",
                        help="a car standing still does not accelerate during its response time (CARLA's RSS "
                             "sensor; [rss] hold_standing in scenarios)")
@@ -246,10 +250,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             spec = BatchSpec(path, (scenario,), (scenario.seed,), {})
         if args.seeds is not None:
             spec = replace(spec, seeds=tuple(args.seeds))
-        if args.rss_preset:
-            spec = replace(spec, grid={**spec.grid, "rss_preset": tuple(args.rss_preset)})
-        if args.controller:
-            spec = replace(spec, grid={**spec.grid, "controller": tuple(args.controller)})
+        swept = {key: tuple(values) for key, values in (("rss_preset", args.rss_preset),
+                                                         ("controller", args.controller)) if values}
+        spec = replace(spec, grid={**spec.grid, **swept})  # the command line's sweeps replace the file's
         tasks += spec.tasks()
     out = args.out or Path("results") / args.specs[0].stem
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)

@@ -304,3 +304,55 @@ def test_instantaneous_lane_changes_are_named_once(dense_run, tmp_path):
     with pytest.warns(UserWarning, match=r"jumps\.xml: .* moves 3\.\d+ m sideways in one 0\.1 s step") as caught:
         list(FcdReader(tmp_path / "jumps.xml", network, vehicles))
     assert len([w for w in caught if "sideways" in str(w.message)]) == 1
+
+
+def _crash_with_sumo_defaults(folder) -> tuple:
+    """A follower accelerating into a braking leader, run by SUMO with its default collision action (teleport:
+    the collider is moved on to the next edge in the step of the collision); returns (fcd, collisions, routes)."""
+    routes = folder / "crash.rou.xml"
+    routes.write_text('<routes><vType id="car" length="4.5" width="1.8"/>'
+                      '<route id="hw" edges="hw0 hw1 hw2"/></routes>', encoding="utf-8")
+    fcd, collisions = folder / "fcd.xml", folder / "collisions.xml"
+    libsumo.start(["sumo", "-n", str(HIGHWAY), "-r", str(routes), "--step-length", "0.1", "--no-step-log", "true",
+                   "--no-warnings", "true", "--fcd-output", str(fcd), "--fcd-output.acceleration", "true",
+                   "--collision-output", str(collisions)])
+    try:
+        for vid, pos in (("leader", 150.0), ("follower", 100.0)):
+            libsumo.vehicle.add(vid, "hw", typeID="car", depart="now", departLane="1", departPos=str(pos),
+                                departSpeed="15")
+            libsumo.vehicle.setSpeedMode(vid, 0)
+            libsumo.vehicle.setLaneChangeMode(vid, 0)
+        for _ in range(60):
+            if libsumo.vehicle.getIDCount() == 2:
+                libsumo.vehicle.setSpeed("leader", max(0.0, libsumo.vehicle.getSpeed("leader") - 0.5))
+                libsumo.vehicle.setSpeed("follower", libsumo.vehicle.getSpeed("follower") + 0.1)
+            libsumo.simulationStep()
+    finally:
+        libsumo.close()
+    return fcd, collisions, routes
+
+
+def test_a_collision_joins_the_episode_that_its_collision_action_ended(tmp_path):
+    """SUMO's default collision action moves the collider away in the step of the collision, so the pair is no
+    longer a candidate then; the collision still closes (and is blamed by) the pair's episode."""
+    fcd, collisions, routes = _crash_with_sumo_defaults(tmp_path)
+    net, vehicles = RoadNetwork.from_file(HIGHWAY), read_vehicle_info(routes, HIGHWAY)
+    crash_time = float(ET.parse(collisions).getroot().find("collision").get("time"))
+    crash = audit_fcd(fcd, net, ParamResolver(), vehicles=vehicles, collisions=collisions, run_id="crash")
+    assert crash.collisions[["time_s", "collider", "victim", "blamed"]].values.tolist() == \
+        [[crash_time, "follower", "leader", "follower"]]
+    episode = crash.episodes.set_index("episode_key").loc[crash.collisions.episode_key[0]]
+    assert (episode.ended_by, episode.t_end_s, episode.responsible, episode.collider) == \
+        ("collision", crash_time, "a", "follower")
+    # A car that leaves the data (here: removed from the file at the collision) ends its pair's episode by the end
+    # of its data, at the last step with both cars; it used to end 'safe' at the first step without it.
+    tree = ET.parse(fcd)
+    for step in tree.getroot().iter("timestep"):
+        if float(step.get("time")) >= crash_time - 1e-9:
+            for vehicle in step.findall("vehicle[@id='follower']"):
+                step.remove(vehicle)
+    tree.write(tmp_path / "cut.xml")
+    cut = audit_fcd(tmp_path / "cut.xml", net, ParamResolver(), vehicles=vehicles, run_id="crash")
+    assert cut.collisions.empty and len(cut.episodes) == 1
+    assert cut.episodes[["ended_by", "t_end_s", "responsible"]].values.tolist() == \
+        [["end-of-data", round(crash_time - 0.1, 6), "a"]]

@@ -135,6 +135,7 @@ class ResponsibilityTracker:
         self._prev_rules = np.zeros(0, dtype=np.int8)
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
+        self._ended_now: dict[int, dict] = {}  # pair key → record of an episode that ended at the current step
         self._last_time: float | None = None
 
     # -----------------------------------------------------------------------------------------------------
@@ -148,10 +149,16 @@ class ResponsibilityTracker:
         sit_rows = order
         dangerous = sit.dangerous[order]
 
-        # 1. Episodes whose pair is safe now (or no longer a candidate, i.e. far apart) end at this step.
+        # 1. Episodes with a car that has left the data (arrived, teleported, removed) end where their data ends;
+        # episodes whose pair is safe now (or no longer a candidate, i.e. far apart) end at this step. A collision
+        # reported at this step still joins them (collide): SUMO's default collision action removes the collider
+        # or moves it far away in the very step of the collision.
+        gone = ~(np.isin(self._open.a_id, step.ids) & np.isin(self._open.b_id, step.ids))
+        self._ended_now = dict(zip(self._open.keys[gone].tolist(), self._close(gone, step.time, end_of_data=True)))
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
-        self._close(~still_dangerous, step.time)
+        self._ended_now.update(zip(self._open.keys[~still_dangerous].tolist(),
+                                   self._close(~still_dangerous, step.time)))
         # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
         found, pos = _lookup(keys, self._collided)
         self._collided = self._collided[found & dangerous[pos]] if len(keys) else self._collided[:0]
@@ -187,10 +194,17 @@ class ResponsibilityTracker:
             same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES))
 
     def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
-        """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode)."""
+        """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode). An
+        episode that ended at this step (step 1 of :meth:`step`) is the collision's too: the pair was in danger
+        up to the contact."""
         hit = np.flatnonzero(self._open.keys == pair_key)
         if hit.size == 0:
-            return None
+            record = self._ended_now.pop(pair_key, None)
+            if record is not None:
+                self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
+                record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
+                              victim=victim, ended_by="collision")
+            return record
         mask = np.zeros(len(self._open), dtype=bool)
         mask[hit] = True
         self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
