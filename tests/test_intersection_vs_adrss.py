@@ -122,8 +122,17 @@ def _clear(step, code) -> bool:
     return min(abs(a_front), abs(b_front)) > 2e-3
 
 
+def _swapped(step: IntersectionStep) -> IntersectionStep:
+    """The same step seen from the other car (ad_rss gives the ego's response only)."""
+    return IntersectionStep(step.v_other, step.d_enter_other, step.d_exit_other, step.p_other, step.v_ego,
+                            step.d_enter_ego, step.d_exit_ego, step.p_ego,
+                            {"ego": "other", "other": "ego", "same": "same"}[step.priority], step.len_other,
+                            step.len_ego)
+
+
 def test_owed_response_after_the_danger_threshold_matches_ad_rss():
-    """A safe step then an unsafe one: ad_rss's response for the ego (BrakeMin or None) equals our duty for a."""
+    """A safe step then an unsafe one: ad_rss's response (BrakeMin or None) for each car, taken as its ego, equals
+    our duty for it."""
     rng = np.random.default_rng(5)
     codes = {"ego": PRIORITY_A, "other": PRIORITY_B, "same": PRIORITY_SAME}
     compared = 0
@@ -138,7 +147,8 @@ def test_owed_response_after_the_danger_threshold_matches_ad_rss():
                                                                                _clear(after, code)):
             continue
         theirs = check_sequence([before, after])[-1]
-        if theirs.safe:  # ad_rss's tolerance put it on the other side of a threshold
+        theirs_b = check_sequence([_swapped(before), _swapped(after)])[-1]
+        if theirs.safe or theirs_b.safe:  # ad_rss's tolerance put it on the other side of a threshold
             continue
         rules = int(safe_before.able_to_stop) * RULE_ABLE_TO_STOP + int(safe_before.in_front) * RULE_IN_FRONT + \
             int(safe_before.no_time_overlap) * RULE_NO_OVERLAP
@@ -147,10 +157,13 @@ def test_owed_response_after_the_danger_threshold_matches_ad_rss():
                              a_is_rear=np.array([not bool(safe_after.a_in_front)]), a_is_left=np.zeros(1, bool),
                              lon_gap=one, lat_gap=one, v_lon_a=one, v_lon_b=one, v_lat_a=one, v_lat_b=one,
                              lon_d_min=one, lat_d_min=one, lon_safe=np.zeros(1, bool), lat_safe=np.zeros(1, bool),
-                             rules=np.zeros(1, np.int8), priority=np.array([code], np.int8))
+                             rules=np.zeros(1, np.int8), priority=np.array([code], np.int8),
+                             in_front=np.array([1 if safe_after.a_in_front else 2 if safe_after.b_in_front else 0],
+                                               np.int8))
         duties = duties_at_threshold(sit, np.array([0]), np.array([rules], np.int8), np.array([True]),
                                      np.array([False]))
-        assert bool(duties.must_brake[0, 0]) == (theirs.response == "BrakeMin"), (before, after, theirs, rules)
+        assert tuple(map(bool, duties.must_brake[0])) == (theirs.response == "BrakeMin",
+                                                          theirs_b.response == "BrakeMin"), (before, after, rules)
         seen_rules.add(duties.trigger[0])
         compared += 1
     assert seen_rules == {"able-to-stop", "in-front", "no-time-overlap"}  # every branch was exercised

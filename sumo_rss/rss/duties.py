@@ -6,7 +6,8 @@ car brakes at b_min, the front car must not brake harder than b_max; opposite di
 both safe → both responses; a pair that appears already dangerous owes the longitudinal response unless the
 cars overlap longitudinally, then the lateral one.
 Intersections: able-to-stop held → the car(s) without priority brake, a priority car may drive on; in-front
-held → the rear car brakes; otherwise (no time overlap, or dangerous when first seen) both brake.
+held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap, or dangerous when
+first seen) both brake.
 """
 from __future__ import annotations
 
@@ -88,11 +89,14 @@ def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.n
     in_front = ~able & ((rules & RULE_IN_FRONT) > 0)
     priority = sit.priority[rows] if sit.priority is not None else np.zeros(n, dtype=np.int8)
     yielding = np.column_stack([priority != 1, priority != 2])  # equal priority: both yield
-    a_rear = sit.a_is_rear[rows]
-    rear = np.column_stack([a_rear, ~a_rear])
-    must_brake = np.where(able[:, None], yielding, np.where(in_front[:, None], rear, True))
+    # Safe by 'in front' before t_b: the rear car brakes; if neither car is in front at t_b (they overlap on the
+    # virtual line), there is no rear car and both do, as ad_rss's BrakeMin for both.
+    ahead = sit.in_front[rows] if sit.in_front is not None else np.zeros(n, dtype=np.int8)
+    ordered = in_front & (ahead > 0)
+    rear = np.column_stack([ahead == 2, ahead == 1])
+    must_brake = np.where(able[:, None], yielding, np.where(ordered[:, None], rear, True))
     roles = np.where(able[:, None], np.where(yielding, "yielding", "priority"),
-                     np.where(in_front[:, None], np.where(rear, "rear", "front"), "crossing")).astype(object)
+                     np.where(ordered[:, None], np.where(rear, "rear", "front"), "crossing")).astype(object)
     owed = np.where(must_brake, "int:brake-min", "").astype(object)
     trigger = np.where(able, "able-to-stop", np.where(in_front, "in-front", np.where(
         (rules > 0), "no-time-overlap", np.where(appeared, "appeared", "first-seen"))))

@@ -208,4 +208,5 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
         lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
         v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, need_a, need_b), lat_d_min=nan,
         lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
+        in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
         area=np.array([junctions.conflicts[k].id for k in junctions.area_index[la, lb]], dtype=object))

@@ -96,10 +96,12 @@ class PairSituations:
     lat_d_min: np.ndarray  # [m]
     lon_safe: np.ndarray
     lat_safe: np.ndarray
-    # Intersections: RULE_* bits that hold, priority (0 same, 1 a, 2 b) and the conflict area; lon_gap /
-    # lon_d_min then hold the yielding car's distance to the area and what it needs to stop before it.
+    # Intersections: RULE_* bits that hold, priority (0 same, 1 a, 2 b), the car in front on the virtual line (0
+    # neither: they overlap there or are apart; 1 a, 2 b) and the conflict area; lon_gap / lon_d_min then hold
+    # the yielding car's distance to the area and what it needs to stop before it.
     rules: np.ndarray | None = None
     priority: np.ndarray | None = None
+    in_front: np.ndarray | None = None
     area: np.ndarray | None = None
 
     @property
@@ -135,7 +137,7 @@ class PairSituations:
             "v_lat_b", "lon_d_min", "lat_d_min", "lon_safe", "lat_safe")}
         rules = np.concatenate([p.safe_rules for p in parts])
         return PairSituations(**fields, rules=rules, priority=column("priority", 0, np.int8),
-                              area=column("area", "", object))
+                              in_front=column("in_front", 0, np.int8), area=column("area", "", object))
 
 
 def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
