@@ -1,11 +1,17 @@
 """The ego hook: a planner's trajectory is executed exactly by libsumo (moveToXY + setPreviousSpeed)."""
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import pytest
 
 from conftest import write_scenario
 from sumo_rss import SessionError, Trajectory, load_scenario
+from sumo_rss.batch.runner import param_resolver
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.auditor import Auditor
+from sumo_rss.rss.fcd import audit_fcd, read_vehicle_info
 from sumo_rss.sim.session import Session
 
 LANE_Y = -5.25  # centre of highway lane 1 (lanes 3.5 m wide, the edge's left border at y = 0) [m]
@@ -84,3 +90,35 @@ def test_the_ego_arrives_at_the_end_of_its_route(valid_scenario, tmp_path):
     assert not session.ego_on_road  # it arrived, ~ (900 - 50) / 25 = 34 s after departing
     assert session.time < t0 + 36.0
     assert edges == {"hw0"} and last_x > 870.0
+
+
+def test_the_fcd_of_a_placed_ego_gives_the_online_audit_offline(valid_scenario, tmp_path):
+    """SUMO writes acceleration and speedLat 0 for a vehicle placed by moveToXY; the session writes the values its
+    snapshots derived, so the offline audit of the run's FCD equals the online one (a lane change while
+    speeding up, in traffic)."""
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    network = RoadNetwork.from_file(spec.net_file)
+    online = Auditor(network, param_resolver(spec), "placed")
+    with Session(spec, tmp_path / "run", fcd=True) as session:
+        while not session.ego_on_road:
+            online.observe(session.step())
+        t0, x0 = session.time, float(session.snapshot.x[session.snapshot.index_of("ego")])
+        times = t0 + np.arange(0.0, 12.0, spec.step_s)
+        tau = times - t0
+        speed = 20.0 + 0.5 * tau  # speeding up at 0.5 m/s², to the left lane (3.5 m) between 2 s and 6 s
+        lateral = 3.5 * np.clip((tau - 2.0) / 4.0, 0.0, 1.0)
+        plan = Trajectory(times, x0 + 20.0 * tau + 0.25 * tau ** 2, LANE_Y + lateral, np.zeros_like(times), speed,
+                          np.full_like(times, 0.5))
+        for _ in range(110):
+            session.drive_ego(plan)
+            online.observe(session.step())
+    changing = [row for row in ET.parse(tmp_path / "run" / "fcd.xml").getroot().iter("vehicle")
+                      if row.get("id") == "ego" and float(row.get("speedLat")) > 0.8]
+    assert len(changing) >= 30 and all(float(r.get("acceleration")) == pytest.approx(0.5, abs=1e-6)
+                                             for r in changing)  # SUMO wrote 0 for both
+    on = online.finish()
+    off = audit_fcd(tmp_path / "run" / "fcd.xml", network, param_resolver(spec),
+                    vehicles=read_vehicle_info(tmp_path / "run" / "routes.rou.xml", spec.net_file), run_id="placed")
+    assert (on.episodes.class_a == "ego").any() or (on.episodes.class_b == "ego").any()
+    for name in ("episodes", "violations"):
+        assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name

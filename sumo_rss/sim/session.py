@@ -21,6 +21,7 @@ from ..trajectory import Trajectory, TrajectoryState
 from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
 from .demand import write_route_file
+from .fcd_output import correct_placed_vehicle
 from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 
 FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals"
@@ -57,7 +58,7 @@ def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | Non
     s = spec.sumo
     args = [
         "sumo", "--net-file", str(spec.net_file), "--route-files", str(route_file),
-        "--begin", "0", "--step-length", f"{spec.step_s:g}", "--seed", str(spec.seed),
+        "--begin", "0", "--end", f"{spec.duration_s:g}", "--step-length", f"{spec.step_s:g}", "--seed", str(spec.seed),
         "--lanechange.duration", f"{s.lanechange_duration_s:g}",
         "--collision.action", "warn", "--collision.check-junctions", "true",
         "--collision.mingap-factor", f"{s.collision_mingap_factor:g}",
@@ -100,6 +101,7 @@ class Session:
         self._lane_offsets: dict[str, float] = {}
         self._ego_lateral: tuple[str, float, float] | None = None  # (edge, lateral position, speed) last step
         self._ego_speed: float | None = None  # [m/s] at the last step
+        self._ego_derived: dict[float, tuple[float, float]] = {}  # time → (accel, lateral speed) of a placed ego
         self._step_ms = round(spec.step_s * 1000)
         self._signals: tuple[str, ...] = ()
         self._tmp: str | None = None
@@ -152,6 +154,8 @@ class Session:
         if self._open:
             self._open = False
             libsumo.close()
+            if self.write_fcd and self._ego_derived and self.run_dir is not None:
+                correct_placed_vehicle(self.run_dir / "fcd.xml", str(self.ego_id), self._ego_derived)
         if _active is self:
             _active = None
         if self._tmp is not None:
@@ -221,6 +225,8 @@ class Session:
             lat_speed[k] = self._ego_lateral_speed(rows[k])
             previous = self._ego_speed if self._ego_speed is not None else speed[k]
             accel[k] = round((speed[k] - previous) / self.spec.step_s, FCD_PRECISION)
+            if self.write_fcd:
+                self._ego_derived[round(time, 3)] = (float(accel[k]), float(lat_speed[k]))
         if self.ego_id in ids:
             self._ego_speed = speed[ids.index(self.ego_id)]
         return WorldSnapshot(
