@@ -71,7 +71,7 @@ class FlowSpec:
     veh_per_hour: float | None
     probability: float | None
     begin_s: float
-    end_s: float
+    end_s: float | None  # [s] None: until the end of the run (duration_s, also when an override changes it)
     depart_lane: str  # a lane index as a string, or one of DEPART_LANES
     depart_speed: str | float  # [m/s], or one of DEPART_SPEEDS
     vtype: str | None  # None: the background vType distribution
@@ -169,6 +169,10 @@ class ScenarioSpec:
             if duration_s <= 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
                 lower = f"ego.depart_s ({self.ego.depart_s:g})" if self.ego is not None else "0"
                 raise ScenarioError(self.source, "duration_s", f"expected a number > {lower}", duration_s)
+            for flow in self.demand.flows:  # a flow that runs until the end must begin before it
+                if flow.end_s is None and duration_s <= flow.begin_s:
+                    raise ScenarioError(self.source, "duration_s", f"expected a number > the begin_s of flow "
+                                                                   f"{flow.id!r} ({flow.begin_s:g})", duration_s)
             spec = replace(spec, duration_s=float(duration_s))
         return spec
 
@@ -351,9 +355,9 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
         route = _read_route(f, topology)
         kind = one_of(f, ("veh_per_hour", "probability"))
         begin = f.number("begin_s", 0.0, min=0.0)
-        end = f.number("end_s", duration, min=0.0)
-        if end <= begin:
-            raise f.error("end_s", f"expected a number > begin_s ({begin:g})", end)
+        end = f.number("end_s", min=0.0, optional=True)
+        if (duration if end is None else end) <= begin:
+            raise f.error("end_s", f"expected a number > begin_s ({begin:g})", duration if end is None else end)
         speed = f.raw("depart_speed", "desired")
         if not (speed in DEPART_SPEEDS or (isinstance(speed, (int, float)) and not isinstance(speed, bool)
                                            and 0 <= speed <= 100)):

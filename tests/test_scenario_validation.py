@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
+from dataclasses import replace
 
 import pytest
 
 from conftest import REPO, write_scenario
 from sumo_rss import ScenarioError, load_scenario
+from sumo_rss.sim.demand import write_route_file
 
 
 def _set(data: dict, dotted: str, value: object) -> None:
@@ -133,3 +136,20 @@ def test_the_documented_example_is_a_valid_scenario(tmp_path):
     assert spec.name == "my_highway" and [v.id for v in spec.demand.vtypes] == ["car", "truck"]
     assert spec.demand.vtypes[0].lane_change_params == {"lcSpeedGain": 1.0, "lcKeepRight": 1.0}
     assert spec.rss.vtype_overrides == {"truck": {"lon_brake_max": 6.0}}
+
+
+def test_a_flow_without_end_s_runs_until_the_end_of_the_run_also_after_a_duration_override(tmp_path,
+                                                                                             valid_scenario):
+    valid_scenario["demand"]["flows"].append({"id": "late", "route": ["hw0", "hw1", "hw2"], "veh_per_hour": 600,
+                                              "begin_s": 20.0, "end_s": 25.0})
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    assert [f.end_s for f in spec.demand.flows] == [None, 25.0]
+    longer = spec.with_overrides(duration_s=90.0)
+    write_route_file(longer, tmp_path / "r.rou.xml")
+    ends = {f.get("id"): f.get("end") for f in ET.parse(tmp_path / "r.rou.xml").getroot().iter("flow")}
+    assert ends == {"main": "90", "late": "25"}
+    resolved = write_scenario(tmp_path, longer.to_toml_data(), "resolved.toml")
+    assert replace(load_scenario(resolved), source=longer.source) == longer  # end_s stays "until the end"
+    with pytest.raises(ScenarioError, match=r"duration_s.*expected a number > the begin_s of flow 'main' \(10\)"):
+        replace(spec, demand=replace(spec.demand, flows=(replace(spec.demand.flows[0], begin_s=10.0),))
+                ).with_overrides(duration_s=5.0)

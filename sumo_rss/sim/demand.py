@@ -64,7 +64,7 @@ def write_route_file(spec: ScenarioSpec, path: Path) -> Path:
             "type": flow.vtype or BACKGROUND_DISTRIBUTION,
             "route": f"route_{flow.id}",
             "begin": _fmt(flow.begin_s),
-            "end": _fmt(flow.end_s),
+            "end": _fmt(spec.duration_s if flow.end_s is None else flow.end_s),
             "departLane": flow.depart_lane,
             "departSpeed": flow.depart_speed if isinstance(flow.depart_speed, str) else _fmt(flow.depart_speed),
         }
