@@ -7,6 +7,7 @@ the file, the dotted key path and the expected form.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ VEHICLE_CLASSES = ("passenger", "truck", "trailer", "bus", "coach", "delivery", 
 DEPART_LANES = ("best", "random", "free", "allowed", "first")
 DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
 CONTROLLERS = ("sumo", "epsilon", "mpdm")
+BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
 
 
 def networks_root() -> Path:
@@ -236,6 +238,11 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     sumo = _read_sumo(top.table("sumo"))
     demand = _read_demand(top.table("demand"), topology, duration)
     ego = _read_ego(top.table("ego"), topology, duration) if top.has("ego") else None
+    if ego is not None:
+        clash = next((f.id for f in demand.flows if re.fullmatch(rf"{re.escape(f.id)}\.\d+", ego.id)), None)
+        if clash is not None:
+            raise ScenarioError(path, "ego.id", f"expected an id that is not a vehicle of flow {clash!r} "
+                                                f"(named {clash}.0, {clash}.1, ...)", ego.id)
     rss = _read_rss(top.table("rss"), demand, ego)
     outputs_t = top.table("outputs")
     outputs = OutputsSpec(fcd=outputs_t.boolean("fcd", False), collisions_xml=outputs_t.boolean("collisions_xml", True))
@@ -376,6 +383,9 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
     ids = [fl.id for fl in flows]
     if len(set(ids)) != len(ids):
         raise t.error("flows", "expected unique flow ids", ids)
+    for name in names & {BACKGROUND_DISTRIBUTION, EGO_TYPE}:
+        raise t.error(f"vtypes.{name}", f"expected another name: {BACKGROUND_DISTRIBUTION!r} and {EGO_TYPE!r} are "
+                                        "the route file's own vType names", name)
     t.finish()
     return DemandSpec(vtypes, tuple(flows))
 

@@ -6,6 +6,7 @@ misspelt key is an error, never a silent default.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import sys
 from collections.abc import Iterable, Sequence
@@ -43,7 +44,8 @@ class TableReader:
         if not isinstance(data, dict):
             raise ScenarioError(file, path or "<top level>", "expected a table", data)
         self._data = data
-        self._seen: set[str] = set()
+        self._seen: set[str] = set()  # keys read
+        self._known: set[str] = set()  # keys asked about (read, or tested with has)
 
     # -- helpers -------------------------------------------------------------------------------------------
     def key_path(self, key: str) -> str:
@@ -55,10 +57,20 @@ class TableReader:
         return ScenarioError(self.file, self.key_path(key), expected, got)
 
     def has(self, key: str) -> bool:
+        self._known.add(key)
         return key in self._data
+
+    def misspelt(self, keys: Iterable[str]) -> str:
+        """' (did you mean X for Y?)' for a key of the table that is close to one of ``keys``, else ''."""
+        for given in self._data:
+            close = difflib.get_close_matches(given, [k for k in keys if k != given], n=1, cutoff=0.75)
+            if close and given not in self._known:
+                return f" (did you mean {close[0]!r} for {given!r}?)"
+        return ""
 
     def _take(self, key: str, default: Any) -> Any:
         self._seen.add(key)
+        self._known.add(key)
         if key in self._data:
             return self._data[key]
         if default is _MISSING:
@@ -148,8 +160,10 @@ class TableReader:
         """Reject keys that no accessor consumed."""
         unknown = [k for k in self._data if k not in self._seen]
         if unknown:
-            known = sorted(self._seen)
-            hint = f"; known keys here: {', '.join(known)}" if known else ""
+            known = sorted(self._known - set(self._data) | self._seen)
+            close = difflib.get_close_matches(unknown[0], known, n=1, cutoff=0.75)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint += f"; known keys here: {', '.join(known)}" if known else ""
             raise self.error(unknown[0], f"unknown key{hint}")
 
 
@@ -167,6 +181,7 @@ def one_of(reader: TableReader, keys: Sequence[str]) -> str:
     """The single key of ``keys`` present in the table; an error if none or several are."""
     present = [k for k in keys if reader.has(k)]
     if len(present) != 1:
-        raise reader.error(" | ".join(keys), f"expected exactly one of {', '.join(keys)}",
+        hint = reader.misspelt(keys) if not present else ""
+        raise reader.error(" | ".join(keys), f"expected exactly one of {', '.join(keys)}{hint}",
                            present or None)
     return present[0]

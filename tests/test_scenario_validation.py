@@ -23,7 +23,7 @@ def _set(data: dict, dotted: str, value: object) -> None:
 def _delete(data: dict, dotted: str) -> None:
     keys = dotted.split(".")
     for key in keys[:-1]:
-        data = data[key]
+        data = data[int(key)] if isinstance(data, list) else data[key]
     del data[keys[-1]]
 
 
@@ -67,6 +67,17 @@ BROKEN = [
      "ego.planner.costs.lane_change_left", "expected a number >= 0"),
     ("planner discount above 1", lambda d: _set(d, "ego.planner.costs", {"discount": 1.5}),
      "ego.planner.costs.discount", "expected a number in (0, 1]"),
+    ("misspelt flow rate", lambda d: (_delete(d, "demand.flows.0.veh_per_hour"),
+                                      _set(d, "demand.flows.0.veh_per_hr", 600)),
+     "demand.flows[0].veh_per_hour | probability", "did you mean 'veh_per_hour' for 'veh_per_hr'?"),
+    ("misspelt rss parameter", lambda d: _set(d, "rss.background", {"lon_brake_mx": 6.0}),
+     "rss.background.lon_brake_mx", "(did you mean 'lon_brake_max'?); known keys here: lat_accel_max"),
+    ("unknown rss role", lambda d: _set(d, "rss.trucks", {"lon_brake_max": 6.0}), "rss.trucks",
+     "known keys here: background, ego, hold_standing"),
+    ("ego named like a flow vehicle", lambda d: _set(d, "ego.id", "main.3"), "ego.id",
+     "not a vehicle of flow 'main'"),
+    ("reserved vType name", lambda d: _set(d, "demand.vtypes", {"ego_type": {"probability": 1.0}}),
+     "demand.vtypes.ego_type", "the route file's own vType names"),
 ]
 
 

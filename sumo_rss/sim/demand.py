@@ -4,10 +4,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from ..scenario import EgoSpec, ScenarioSpec, VehicleTypeSpec
-
-BACKGROUND_DISTRIBUTION = "background"
-EGO_TYPE = "ego_type"
+from ..scenario import BACKGROUND_DISTRIBUTION, EGO_TYPE, EgoSpec, ScenarioSpec, VehicleTypeSpec
 
 
 def _fmt(value: float) -> str:
