@@ -36,7 +36,8 @@ _REPORT_EXAMPLES = """examples:
 """
 _AUDIT_EXAMPLES = """examples:
   sumo-rss audit results/merge_onramp/0/fcd.xml --net networks/merge/merge.net.xml \\
-      --vtypes results/merge_onramp/0/routes.rou.xml --collisions results/merge_onramp/0/collisions.xml
+      --vtypes results/merge_onramp/0/routes.rou.xml --collisions results/merge_onramp/0/collisions.xml \\
+      --scenario results/merge_onramp/0/scenario.toml        # = the run's online audit
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
   sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
   (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
@@ -158,7 +159,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="SUMO signal-state file, written by an additional file holding <timedEvent "
                             "type=\"SaveTLSStates\" dest=\"tls.xml\"/>; default: the net's fixed-time programs "
                             "(other programs: equal priority, with a warning)")
-    audit.add_argument("--rss-preset", default="ad_rss", choices=PRESETS,
+    audit.add_argument("--scenario", type=Path,
+                       help="the run's scenario.toml: its RSS preset, [rss.*] overrides, hold_standing and signal "
+                            "rule, as the online audit used them (instead of the three options below)")
+    audit.add_argument("--rss-preset", choices=PRESETS,
                        help="RSS parameter preset (default: ad_rss; docs/rss.md lists them)")
     audit.add_argument("--hold-standing", action="store_true",
                        help="a car standing still does not accelerate during its response time (CARLA's RSS "
@@ -271,10 +275,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_audit(args: argparse.Namespace) -> int:
+    from .batch.runner import param_resolver
     from .files import write_json
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
+    from .scenario import load_scenario
 
     if not args.net.is_file():
         raise FcdError(f"{args.net}: network file not found")
@@ -286,12 +292,21 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         raise FcdError(f"{args.collisions}: collision file not found")
     if args.tls_states and not args.tls_states.is_file():
         raise FcdError(f"{args.tls_states}: signal-state file not found")
-    resolver = ParamResolver(args.rss_preset, vtype_dynamics=vehicles.dynamics, hold_standing=args.hold_standing)
+    if args.scenario is not None:
+        if args.rss_preset or args.hold_standing or args.no_signal_rule:
+            raise SumoRssError("--scenario sets the RSS parameters: leave out --rss-preset, --hold-standing and "
+                               "--no-signal-rule")
+        spec = load_scenario(args.scenario)
+        resolver, signal_rule = param_resolver(spec), spec.rss.signal_rule
+    else:
+        resolver = ParamResolver(args.rss_preset or "ad_rss", vtype_dynamics=vehicles.dynamics,
+                                 hold_standing=args.hold_standing)
+        signal_rule = not args.no_signal_rule
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,
                        collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                       run_id=run_id, signal_rule=not args.no_signal_rule)
+                       run_id=run_id, signal_rule=signal_rule)
     result.to_csv(args.out)
     write_json(args.out / "rss_params.json", result.params)
     print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "

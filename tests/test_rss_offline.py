@@ -356,3 +356,23 @@ def test_a_collision_joins_the_episode_that_its_collision_action_ended(tmp_path)
     assert cut.collisions.empty and len(cut.episodes) == 1
     assert cut.episodes[["ended_by", "t_end_s", "responsible"]].values.tolist() == \
         [["end-of-data", round(crash_time - 0.1, 6), "a"]]
+
+
+def test_audit_with_the_runs_scenario_applies_its_rss_overrides(tmp_path, valid_scenario):
+    valid_scenario["rss"].update({"hold_standing": True, "background": {"response_time": 1.5},
+                                  "vtypes": {"car": {"lon_brake_max": 7.0}}})
+    del valid_scenario["ego"]
+    proc = _cli("run", str(write_scenario(tmp_path, valid_scenario)), "--fcd", "--out", str(tmp_path / "runs"),
+                "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run = tmp_path / "runs" / "scenario" / "1"
+    common = (str(run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(run / "routes.rou.xml"),
+              "--collisions", str(run / "collisions.xml"))
+    proc = _cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--out", str(tmp_path / "same"))
+    assert proc.returncode == 0, proc.stderr
+    for name in ("episodes.csv", "violations.csv", "collisions.csv", "rss_params.json"):
+        assert (tmp_path / "same" / name).read_bytes() == (run / name).read_bytes(), name
+    assert _cli("audit", *common, "--out", str(tmp_path / "preset")).returncode == 0  # plain ad_rss differs
+    assert (tmp_path / "preset" / "episodes.csv").read_bytes() != (run / "episodes.csv").read_bytes()
+    clash = _cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--hold-standing")
+    assert clash.returncode == 2 and "--scenario sets the RSS parameters" in clash.stderr
