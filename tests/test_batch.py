@@ -49,7 +49,12 @@ def test_two_worker_batch_equals_running_each_alone(two_scenarios, tmp_path):
         for name in AUDIT_FILES:
             together = (tmp_path / "batch" / task.run_id / name).read_bytes()
             assert together == (tmp_path / "alone" / task.run_id / name).read_bytes(), (task.run_id, name)
-    # The batch CSVs are the runs' CSVs with their keys.
+    # The batch CSVs are the runs' CSVs with their keys, cell for cell as the runs wrote them.
+    combined = pd.read_csv(tmp_path / "batch" / "episodes.csv", dtype=str, keep_default_na=False)
+    for task in batch.tasks():
+        rows = combined[combined.run_id == task.run_id].drop(columns=["scenario", "variant", "seed"])
+        assert rows.to_csv(index=False, lineterminator="\n") == \
+            (tmp_path / "batch" / task.run_id / "episodes.csv").read_text()
     episodes = read_batch_csv(tmp_path / "batch", "episodes")
     per_run = sum(len(pd.read_csv(tmp_path / "batch" / t.run_id / "episodes.csv")) for t in batch.tasks())
     assert len(episodes) == per_run > 0
@@ -70,6 +75,8 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
     assert list(summary.status) == ["ok", "ok", "failed", "failed"]
     failure = json.loads((out / "bad" / "0.failed" / "failed.json").read_text())
     assert "SessionError" in failure["error"] and "Traceback" in failure["traceback"]
+    assert "No option with the name 'bogus-option' exists" in failure["error"]  # SUMO's own reason
+    assert (out / "batch_summary.csv").read_text().splitlines()[1].split(",")[8] == "200"  # counts stay integers
     assert not (out / "bad" / "0").exists()
     finished = (out / "light" / "0" / "summary.json").stat().st_mtime_ns
     again = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
@@ -158,6 +165,42 @@ def test_report_plots_what_the_csvs_say(two_scenarios, tmp_path):
     # Every run's row is in the HTML summary.
     for run_id in read_batch_csv(out, "batch_summary").run_id:
         assert run_id in page
+
+
+def test_a_changed_scenario_is_run_again_and_old_batch_files_do_not_linger(two_scenarios, valid_scenario,
+                                                                           tmp_path):
+    out = tmp_path / "b"
+    assert _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 0
+    assert write_report(out) and (out / "episodes.csv").is_file() and (out / "report" / "ego_speed.png").is_file()
+    valid_scenario["duration_s"] = 15.0
+    write_scenario(two_scenarios, valid_scenario, "light.toml")  # same name, other parameters
+    again = _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet")
+    assert again.returncode == 0 and "1 finished run(s) were made from other scenario parameters" in again.stderr
+    assert read_batch_csv(out, "batch_summary").sim_time_s.tolist() == [15.0]
+    valid_scenario["sumo"] = {"extra_args": ["--bogus-option", "1"]}
+    write_scenario(two_scenarios, valid_scenario, "light.toml")
+    assert _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 1
+    page = write_report(out).read_text()
+    assert not (out / "episodes.csv").exists() and not (out / "report" / "ego_speed.png").exists()
+    assert "0 of 1 runs ok" in page and "alt='pair_timeline'" not in page
+
+
+def test_the_timeline_plots_numbers_and_tables_show_runs_without_any(tmp_path):
+    from sumo_rss.report.plots import pair_timeline
+    from sumo_rss.report.summary import violation_table
+
+    states = pd.DataFrame({"run_id": "r/0", "episode_key": "a|b|1", "time_s": [1.0, 1.1, 1.2],
+                           "lon_gap_m": [5.0, 4.0, 3.0], "lon_d_min_m": [9.0, 9.0, 9.0],
+                           "lat_gap_m": ["-1.5", "", "-1.25"], "lat_d_min_m": ["0.35", "", "0.35"]})
+    episode = pd.Series({"run_id": "r/0", "episode_key": "a|b|1", "t_b_s": 1.0, "t_end_s": 1.2, "owed_a": "",
+                         "owed_b": "lon:brake-min", "responsible": "b"})
+    fig, _ = pair_timeline(states, episode)  # text cells, as a batch CSV with junction rows reads
+    gap = fig.axes[1].get_lines()[0].get_ydata()
+    assert gap[0] == -1.5 and gap[2] == -1.25 and str(gap[1]) == "nan"
+    violations = pd.DataFrame({"constraint": ["lat-speed-envelope"], "scenario": ["s"], "variant": ["a"]})
+    table = violation_table(violations, ["s [a]", "s [b]"])
+    assert table.loc["lat-speed-envelope"].to_dict() == {"s [a]": 1, "s [b]": 0}
+    assert responsibility_table(pd.DataFrame(), ["s [b]"]).loc["s [b]"].sum() == 0
 
 
 def test_batch_spec_errors_name_the_file_and_key(tmp_path):

@@ -14,6 +14,8 @@ from .spec import Task
 SUMMARY_COLUMNS = ["run_id", "scenario", "variant", "seed", "status", "sim_time_s", "wall_time_s",
                    "real_time_factor", "steps", "vehicles_inserted", "peak_vehicles", "episodes", "violations",
                    "collisions", "teleports", "ego_responsible_episodes", "ego_mean_speed_ms", "error"]
+COUNT_COLUMNS = ("seed", "steps", "vehicles_inserted", "peak_vehicles", "episodes", "violations", "collisions",
+                 "teleports", "ego_responsible_episodes")
 CONCATENATED = ("episodes", "violations", "collisions", "pair_states")
 
 
@@ -33,19 +35,22 @@ def summary_row(out_dir: Path, task: Task) -> dict:
 def write_batch_outputs(out_dir: Path, tasks: list[Task]) -> pd.DataFrame:
     """batch_summary.csv and the concatenated episodes / violations / collisions / pair_states CSVs."""
     rows = pd.DataFrame([summary_row(out_dir, t) for t in tasks], columns=SUMMARY_COLUMNS)
+    rows = rows.astype({name: "Int64" for name in COUNT_COLUMNS})  # integers also where a run failed (empty)
     write_csv(rows, out_dir / "batch_summary.csv")
     ok = [t for t, status in zip(tasks, rows.status) if status == "ok"]
     for name in CONCATENATED:
         parts = []
         for task in ok:
             path = run_directory(out_dir, task) / f"{name}.csv"
-            if path.is_file():
-                frame = pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str})
+            if path.is_file():  # the cells as the run wrote them (text), so the rows are exact copies
+                frame = pd.read_csv(path, dtype=str, keep_default_na=False)
                 frame.insert(1, "scenario", task.spec.name)
                 frame.insert(2, "variant", task.variant)
-                frame.insert(3, "seed", task.spec.seed)
+                frame.insert(3, "seed", str(task.spec.seed))
                 parts.append(frame)
         if parts:
             write_csv(pd.concat(parts, ignore_index=True), out_dir / f"{name}.csv")
+        else:  # no run has it now: an older batch's file must not stand for this one
+            (out_dir / f"{name}.csv").unlink(missing_ok=True)
     return rows
 

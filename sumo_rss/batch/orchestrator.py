@@ -5,9 +5,11 @@ process is taken over, together with the half-written ``*.partial`` run folders 
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import sys
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -16,7 +18,7 @@ from tqdm import tqdm
 from ..errors import SumoRssError
 from .aggregate import write_batch_outputs
 from .executors import LocalExecutor, Outcome, RayExecutor
-from .runner import SUMMARY_FILE, run_directory
+from .runner import MANIFEST_FILE, SUMMARY_FILE, run_directory
 from .spec import Task
 
 LOCK_FILE = ".batch.lock"
@@ -27,11 +29,22 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
     """Run every task not finished yet; returns the batch summary (one row per task)."""
     out_dir = Path(out_dir)
     ids = [t.run_id for t in tasks]
-    if len(set(ids)) != len(ids):
-        raise SumoRssError("the batch names some run twice (same scenario, variant and seed)")
+    twice = sorted({run_id for run_id in ids if ids.count(run_id) > 1})
+    if twice:
+        sources = sorted({str(t.spec.source) for t in tasks if t.run_id in twice})
+        raise SumoRssError(f"the batch names run {twice[0]} twice (the same scenario name, variant and seed, from "
+                           f"{' and '.join(sources)})")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SumoRssError(f"{out_dir}: expected a folder for the batch's results, got a file")
     out_dir.mkdir(parents=True, exist_ok=True)
     with _BatchLock(out_dir):
-        todo = [t for t in tasks if not (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
+        todo = [t for t in tasks if not _finished(out_dir, t)]
+        stale = [run_directory(out_dir, t) for t in todo if (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
+        if stale:
+            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters; "
+                          "running them again", stacklevel=2)
+            for folder in stale:  # gone first: a rerun that fails must not leave the old results standing for it
+                shutil.rmtree(folder)
         failed = 0
         with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="runs", unit="run", disable=not progress,
                   file=sys.stderr, dynamic_ncols=True) as bar:
@@ -47,6 +60,19 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
                 _remove_partial_runs(out_dir)
                 rows = write_batch_outputs(out_dir, tasks)
     return rows
+
+
+def _finished(out_dir: Path, task: Task) -> bool:
+    """Whether ``task``'s run folder holds a complete run of the same resolved scenario (the parameter hash of its
+    manifest matches): a scenario changed since is run again, not reported from the old run."""
+    folder = run_directory(out_dir, task)
+    if not (folder / SUMMARY_FILE).is_file():
+        return False
+    try:
+        manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return manifest.get("parameter_hash") == task.parameter_hash()
 
 
 class _BatchLock:

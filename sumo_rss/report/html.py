@@ -11,7 +11,10 @@ import pandas as pd
 from ..errors import SumoRssError
 from ..files import write_text
 from .plots import ego_speed, pair_timeline, responsibility_bars, violation_histogram
-from .summary import read_batch_csv, responsibility_table, violation_table
+from .summary import read_batch_csv, responsibility_table, run_label, violation_table
+
+
+FIGURES = ("responsibility", "violations", "pair_timeline", "ego_speed")
 
 
 def write_report(batch_dir: Path) -> Path:
@@ -25,21 +28,24 @@ def write_report(batch_dir: Path) -> Path:
     states = read_batch_csv(batch_dir, "pair_states")
     figures_dir = batch_dir / "report"
     figures_dir.mkdir(exist_ok=True)
-    figures = {"responsibility": responsibility_bars(responsibility_table(episodes))[0],
-               "violations": violation_histogram(violation_table(violations))[0]}
+    labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
+    responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
+    figures = {"responsibility": responsibility_bars(responsibility)[0], "violations": violation_histogram(broken)[0]}
     timeline = longest_traced_episode(episodes, states)
     if timeline is not None:
         figures["pair_timeline"] = pair_timeline(states, timeline)[0]
     traces = ego_traces(batch_dir, summary)
     if traces:
         figures["ego_speed"] = ego_speed(traces)[0]
+    for stale in set(FIGURES) - set(figures):  # a figure this batch does not have must not linger from an older one
+        (figures_dir / f"{stale}.png").unlink(missing_ok=True)
     images = {}
     for name, fig in figures.items():
         path = figures_dir / f"{name}.png"
         fig.savefig(path, dpi=100)
         plt.close(fig)
         images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
-    page = _page(batch_dir, summary, responsibility_table(episodes), violation_table(violations), images)
+    page = _page(batch_dir, summary, responsibility, broken, images)
     out = batch_dir / "report.html"
     write_text(out, page)
     return out

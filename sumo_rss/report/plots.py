@@ -46,8 +46,10 @@ def pair_timeline(states: pd.DataFrame, episode: pd.Series) -> tuple[Figure, pd.
     data = data.sort_values("time_s")
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for ax, kind in zip(axes, ("lon", "lat")):
-        ax.plot(data.time_s, data[f"{kind}_gap_m"], label=f"{kind} gap")
-        ax.plot(data.time_s, data[f"{kind}_d_min_m"], "--", label=f"{kind} d_min")
+        # Numbers, also where a batch CSV holds empty cells (junction pairs have no lateral gap) and reads as text.
+        gap, d_min = (pd.to_numeric(data[f"{kind}_{name}_m"], errors="coerce") for name in ("gap", "d_min"))
+        ax.plot(data.time_s, gap, label=f"{kind} gap")
+        ax.plot(data.time_s, d_min, "--", label=f"{kind} d_min")
         ax.axvspan(episode.t_b_s, episode.t_end_s, color="#d62728", alpha=0.12, label="danger")
         ax.set_ylabel("m")
         ax.legend(loc="upper right", fontsize="small")

@@ -36,17 +36,23 @@ def responsibility_category(episodes: pd.DataFrame) -> pd.Series:
          for e, g in zip(ego, background)], index=episodes.index, dtype=object)
 
 
-def responsibility_table(episodes: pd.DataFrame) -> pd.DataFrame:
-    """Episodes per run label (rows) and responsibility category (columns)."""
+def responsibility_table(episodes: pd.DataFrame, labels: list[str] | None = None) -> pd.DataFrame:
+    """Episodes per run label (rows; every one of ``labels``, 0 where a run had none) and responsibility category
+    (columns)."""
     if episodes.empty:
-        return pd.DataFrame(columns=RESPONSIBILITY_CATEGORIES)
-    table = pd.crosstab(run_label(episodes), responsibility_category(episodes), rownames=["run"],
-                        colnames=["responsible"])
-    return table.reindex(columns=RESPONSIBILITY_CATEGORIES, fill_value=0)
+        table = pd.DataFrame(columns=RESPONSIBILITY_CATEGORIES, dtype=int)
+    else:
+        table = pd.crosstab(run_label(episodes), responsibility_category(episodes), rownames=["run"],
+                            colnames=["responsible"])
+    table = table.reindex(columns=RESPONSIBILITY_CATEGORIES, fill_value=0)
+    return table if labels is None else table.reindex(sorted(set(labels) | set(table.index)), fill_value=0)
 
 
-def violation_table(violations: pd.DataFrame) -> pd.DataFrame:
-    """Violations per constraint (rows) and run label (columns)."""
+def violation_table(violations: pd.DataFrame, labels: list[str] | None = None) -> pd.DataFrame:
+    """Violations per constraint (rows) and run label (columns; every one of ``labels``, 0 where a run had
+    none)."""
     if violations.empty:
         return pd.DataFrame()
-    return pd.crosstab(violations.constraint, run_label(violations), rownames=["rule"], colnames=["run"])
+    table = pd.crosstab(violations.constraint, run_label(violations), rownames=["rule"], colnames=["run"])
+    return table if labels is None else table.reindex(columns=sorted(set(labels) | set(table.columns)),
+                                                      fill_value=0)
