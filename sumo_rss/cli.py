@@ -35,9 +35,9 @@ _REPORT_EXAMPLES = """examples:
   sumo-rss report results/default          # -> results/default/report.html and results/default/report/*.png
 """
 _AUDIT_EXAMPLES = """examples:
-  sumo-rss audit results/merge_onramp/0/fcd.xml --net networks/merge/merge.net.xml \\
-      --vtypes results/merge_onramp/0/routes.rou.xml --collisions results/merge_onramp/0/collisions.xml \\
-      --scenario results/merge_onramp/0/scenario.toml        # = the run's online audit
+  sumo-rss audit results/merge_onramp/3/fcd.xml --net networks/merge/merge.net.xml \\
+      --vtypes results/merge_onramp/3/routes.rou.xml --collisions results/merge_onramp/3/collisions.xml \\
+      --scenario results/merge_onramp/3/scenario.toml        # the run of 'sumo-rss run --help': its online audit
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
   sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
   (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
@@ -75,9 +75,11 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def _non_negative_int(text: str) -> int:
-    if not text.isdigit():
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+def _seed(text: str) -> int:
+    from .scenario import MAX_SEED
+
+    if not text.isdigit() or int(text) > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, {MAX_SEED}], got {text!r}")
     return int(text)
 
 
@@ -106,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "OUT/<scenario>/<seed>/ (resolved scenario.toml, summary.json, SUMO logs).",
                          epilog=_RUN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("scenario", type=Path, help="scenario TOML file")
-    run.add_argument("--seed", type=_non_negative_int, help="random seed (default: the scenario's)")
+    run.add_argument("--seed", type=_seed, help="random seed (default: the scenario's)")
     run.add_argument("--duration", type=_positive_float, metavar="S",
                      help="simulated seconds (default: the scenario's)")
     run.add_argument("--controller", choices=CONTROLLERS,
@@ -196,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     intent.add_argument("--duration", type=_positive_float, metavar="S",
                         help="simulated seconds per run (default: the scenario's)")
     intent.add_argument("--epochs", type=int, default=30, help="training epochs (default 30)")
-    intent.add_argument("--seed", type=_non_negative_int, default=0, help="training seed (default 0)")
+    intent.add_argument("--seed", type=_seed, default=0, help="training seed (default 0)")
     intent.add_argument("--workers", type=int, default=1, help="parallel SUMO processes for recording (default 1)")
     intent.add_argument("--all-samples", action="store_true",
                         help="also record samples where lanes do not branch (CFB uses the rules there)")

@@ -27,6 +27,7 @@ DEPART_LANES = ("best", "random", "free", "allowed", "first")
 DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
 CONTROLLERS = ("sumo", "epsilon", "mpdm")
 BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
+MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer
 
 
 def networks_root() -> Path:
@@ -164,8 +165,8 @@ class ScenarioSpec:
                                     has_got=False)
             spec = replace(spec, ego=replace(spec.ego, controller=controller))
         if seed is not None:
-            if seed < 0:
-                raise ScenarioError(self.source, "seed", "expected an integer >= 0", seed)
+            if not 0 <= seed <= MAX_SEED:
+                raise ScenarioError(self.source, "seed", f"expected an integer in [0, {MAX_SEED}]", seed)
             spec = replace(spec, seed=seed)
         if duration_s is not None:
             if duration_s <= 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
@@ -234,7 +235,7 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     topology = _topology(top, net_file)
     duration = top.number("duration_s", min=0.0, max=7 * 86400.0, min_exclusive=True)
     step = top.number("step_s", 0.1, min=0.001, max=1.0)
-    seed = top.integer("seed", 0, min=0, max=2**31 - 1)
+    seed = top.integer("seed", 0, min=0, max=MAX_SEED)
     sumo = _read_sumo(top.table("sumo"))
     demand = _read_demand(top.table("demand"), topology, duration)
     ego = _read_ego(top.table("ego"), topology, duration) if top.has("ego") else None

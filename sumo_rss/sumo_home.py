@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import subprocess
 import xml.etree.ElementTree as ET
 from functools import lru_cache
 from pathlib import Path
@@ -32,6 +33,23 @@ def sumo_tool(name: str) -> Path:
     if found is None:
         raise SumoRssError(f"SUMO's {name} was not found: install the 'eclipse-sumo' package (make install)")
     return Path(found)
+
+
+def sumo_errors(args: list[str], timeout: float = 60.0) -> str:
+    """SUMO's own error message for the command-line ``args`` (without the program name) that libsumo refused:
+    libsumo raises a bare "Process Error" or similar, so the sumo binary is run with them and its error lines
+    (with their indented continuations) are returned, joined; '' if it printed none."""
+    try:
+        stderr = subprocess.run([str(sumo_tool("sumo")), *args], capture_output=True, text=True, timeout=timeout,
+                                check=False).stderr
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    lines, continuing = [], False
+    for line in stderr.splitlines():
+        continuing = line.startswith("Error") or (continuing and line.startswith(" "))
+        if continuing:
+            lines.append(line.strip())
+    return " ".join(lines)
 
 
 @lru_cache(maxsize=1)

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import ScenarioError
 from ..rss.params import PRESETS, resolve_params
-from ..scenario import CONTROLLERS, ScenarioSpec, load_scenario
+from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario
 from ..validation import TableReader, read_toml
 
 GRID_KEYS = ("rss_preset", "demand_scale", "controller")
@@ -91,7 +91,7 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
     """``[0, 1, 5]``, ``"0:20"`` (20 excluded) or ``"1,7,42"`` → seeds; ValueError (or the reader's
     ScenarioError) otherwise."""
     def fail() -> Exception:
-        expected = "expected a list of integers >= 0, 'A:B' or 'a,b,c'"
+        expected = f"expected a list of integers in [0, {MAX_SEED}], 'A:B' or 'a,b,c'"
         return reader.error("seeds", expected, value) if reader else ValueError(f"{expected}, got {value!r}")
 
     try:
@@ -106,7 +106,7 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
             raise fail()
     except ValueError:
         raise fail() from None
-    if not seeds or min(seeds) < 0:
+    if not seeds or min(seeds) < 0 or max(seeds) > MAX_SEED:
         raise fail()
     return tuple(dict.fromkeys(seeds))
 

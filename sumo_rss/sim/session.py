@@ -17,6 +17,7 @@ from libsumo import constants as tc
 
 from ..errors import SessionError
 from ..scenario import ScenarioSpec
+from ..sumo_home import sumo_errors
 from ..trajectory import Trajectory, TrajectoryState
 from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
@@ -144,7 +145,8 @@ class Session:
             libsumo.start(args)
         except libsumo.TraCIException as exc:
             self.close()
-            raise SessionError(f"SUMO refused to start scenario {self.spec.source}: {exc}") from exc
+            reason = sumo_errors(args[1:]) or str(exc)  # libsumo's own message does not say which option
+            raise SessionError(f"SUMO refused to start scenario {self.spec.source}: {reason}") from exc
         self._open = True
         self._signals = tuple(libsumo.trafficlight.getIDList())
 

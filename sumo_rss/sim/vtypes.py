@@ -6,7 +6,6 @@ keeping a copy of SUMO's tables, :func:`sumo_vtypes` loads the vTypes into libsu
 """
 from __future__ import annotations
 
-import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -16,7 +15,7 @@ from pathlib import Path
 import libsumo
 
 from ..errors import SessionError
-from ..sumo_home import sumo_tool
+from ..sumo_home import sumo_errors
 from . import session
 
 
@@ -49,11 +48,8 @@ def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: st
         try:
             libsumo.start(["sumo", *args])
         except libsumo.TraCIException as exc:
-            # libsumo only says "Process Error"; SUMO's own message comes from running the sumo binary.
-            stderr = subprocess.run([str(sumo_tool("sumo")), *args], capture_output=True, text=True,
-                                    check=False).stderr
-            errors = "; ".join(line.strip() for line in stderr.splitlines() if line.startswith("Error"))
-            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({errors or exc})") from exc
+            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({sumo_errors(args) or exc})"
+                             ) from exc
         try:
             vt = libsumo.vehicletype
             return {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
