@@ -211,6 +211,11 @@ def test_batch_spec_errors_name_the_file_and_key(tmp_path):
     bad.write_text('[batch]\nscenarios = ["x.toml"]\n[batch.grid]\nrss_preset = ["strict"]\n')
     with pytest.raises(Exception, match=r"b\.toml: batch\.grid\.rss_preset: expected values among"):
         load_batch(bad)
+    bad.write_text('[batch]\nscenarios = ["x.toml"]\nseeds = [1, 3000000000]\n')  # SUMO's seed is 32-bit
+    with pytest.raises(Exception, match=r"b\.toml: batch\.seeds: expected a list of integers in \[0, 2147483647\]"):
+        load_batch(bad)
+    proc = _cli("run", "scenarios/highway_dense.toml", "--seed", "3000000000")
+    assert proc.returncode == 2 and "--seed: expected an integer in [0, 2147483647]" in proc.stderr
     assert isinstance(BatchSpec, type)
 
 
