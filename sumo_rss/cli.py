@@ -6,6 +6,7 @@ Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -262,10 +263,15 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         tasks += spec.tasks()
     out = args.out or Path("results") / args.specs[0].stem
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)
+    signal.signal(signal.SIGTERM, _interrupt)  # a scheduler's or timeout's stop: as Ctrl-C, finished runs are kept
     rows = run_batch(tasks, out, executor, progress=not args.quiet)
     failed = int((rows.status != "ok").sum())
     print(f"{len(rows) - failed} runs ok, {failed} failed -> {out / 'batch_summary.csv'}")
     return 1 if failed else 0
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

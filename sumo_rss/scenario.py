@@ -288,7 +288,7 @@ def _read_vtype(t: TableReader, vtype_id: str, *, with_probability: bool) -> Veh
     d = VehicleTypeSpec(vtype_id)
     spec = VehicleTypeSpec(
         id=vtype_id,
-        probability=t.number("probability", d.probability, min=0.0, min_exclusive=True) if with_probability else 1.0,
+        probability=t.number("probability", d.probability, min=0.0) if with_probability else 1.0,
         vclass=t.string("vclass", d.vclass, choices=VEHICLE_CLASSES),
         length=t.number("length", d.length, min=0.5, max=30.0),
         width=t.number("width", d.width, min=0.3, max=4.0),
@@ -387,6 +387,10 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
     for name in names & {BACKGROUND_DISTRIBUTION, EGO_TYPE}:
         raise t.error(f"vtypes.{name}", f"expected another name: {BACKGROUND_DISTRIBUTION!r} and {EGO_TYPE!r} are "
                                         "the route file's own vType names", name)
+    drawing = [fl.id for fl in flows if fl.vtype is None]
+    if drawing and not any(v.probability > 0 for v in vtypes):  # 0: only for flows that name the vType
+        raise t.error("vtypes", f"expected a vType with probability > 0 for the flows that draw from the mix "
+                                f"({', '.join(drawing)})", {v.id: v.probability for v in vtypes})
     t.finish()
     return DemandSpec(vtypes, tuple(flows))
 

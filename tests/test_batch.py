@@ -225,7 +225,9 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path):
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path, stop):
+    """Ctrl-C, or SIGTERM as a job scheduler or timeout sends it."""
     out = tmp_path / "out"
     parent = subprocess.Popen([sys.executable, "-m", "sumo_rss", "batch", str(two_scenarios / "batch.toml"),
                                "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
@@ -233,7 +235,7 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path):
     deadline = time.time() + 120
     while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
         time.sleep(0.05)
-    parent.send_signal(signal.SIGINT)
+    parent.send_signal(stop)
     _, err = parent.communicate(timeout=60)
     assert parent.returncode == 130 and "interrupted" in err
     assert not list(out.glob("**/.*.partial")) and not (out / ".batch.lock").exists()

@@ -78,6 +78,8 @@ BROKEN = [
      "not a vehicle of flow 'main'"),
     ("reserved vType name", lambda d: _set(d, "demand.vtypes", {"ego_type": {"probability": 1.0}}),
      "demand.vtypes.ego_type", "the route file's own vType names"),
+    ("no vType in the mix", lambda d: _set(d, "demand.vtypes.car.probability", 0.0), "demand.vtypes",
+     "expected a vType with probability > 0 for the flows that draw from the mix (main)"),
 ]
 
 
@@ -164,3 +166,13 @@ def test_a_flow_without_end_s_runs_until_the_end_of_the_run_also_after_a_duratio
     with pytest.raises(ScenarioError, match=r"duration_s.*expected a number > the begin_s of flow 'main' \(10\)"):
         replace(spec, demand=replace(spec.demand, flows=(replace(spec.demand.flows[0], begin_s=10.0),))
                 ).with_overrides(duration_s=5.0)
+
+
+def test_a_vtype_with_probability_0_serves_only_the_flows_that_name_it(tmp_path, valid_scenario):
+    valid_scenario["demand"]["vtypes"]["bus"] = {"probability": 0.0, "vclass": "bus", "length": 12.0}
+    valid_scenario["demand"]["flows"].append({"id": "buses", "route": ["hw0", "hw1", "hw2"], "veh_per_hour": 120,
+                                              "vtype": "bus"})
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    write_route_file(spec, tmp_path / "r.rou.xml")
+    mix = ET.parse(tmp_path / "r.rou.xml").getroot().find("vTypeDistribution")
+    assert {v.get("id"): v.get("probability") for v in mix} == {"car": "1", "bus": "0"}

@@ -136,7 +136,11 @@ class RayExecutor:
         import ray
 
         if not ray.is_initialized():
-            ray.init(address=None if self.address == "local" else self.address, log_to_driver=False)
+            try:
+                ray.init(address=None if self.address == "local" else self.address, log_to_driver=False)
+            except ConnectionError as exc:  # no cluster at that address: a one-line error, not Ray's traceback
+                raise SumoRssError(f"--ray-address {self.address}: no Ray cluster to connect to ({exc}); start one "
+                                   "with 'ray start --head', or use 'local'") from None
         remote = ray.remote(num_cpus=1, max_retries=0)(execute)
         futures = {remote.remote(task, str(out_dir)): task for task in tasks}
         try:

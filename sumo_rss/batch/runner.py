@@ -97,6 +97,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     final = run_directory(out_dir, task)
     final.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
+    os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared Ray folder
     try:
         (work / "scenario.toml").write_bytes(tomli_w.dumps(spec.to_toml_data()).encode("utf-8"))
         run_versions = versions()
@@ -175,6 +176,12 @@ def _write_ego_trace(path: Path, rows: list[tuple]) -> None:
         writer.writerow(EGO_TRACE_COLUMNS)
         writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{pos:.6f}",
                           f"{lat:.6f}") for t, x, y, v, a, lane, pos, lat in rows)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def _replace_dir(src: Path, dst: Path) -> None:

@@ -271,8 +271,13 @@ class Session:
     def drive_ego(self, trajectory: Trajectory) -> None:
         """Place the ego at ``trajectory``'s state for the end of the coming step (call before ``step()``).
 
-        The first call hands the ego over from SUMO (speed mode 32, lane-change mode 0); from then on it goes
-        exactly where the trajectory puts it and background traffic reacts to it.
+        ``trajectory`` is in simulation time as the snapshots stamp it: the state at ``session.time + step_s``
+        is taken (interpolated), and the next snapshot shows the ego exactly there. The first call hands the ego
+        over from SUMO (speed mode 32, lane-change mode 0); from then on it goes exactly where the trajectory puts
+        it, without feasibility checks, and background traffic reacts to it. The snapshot's acceleration and
+        lateral speed of the ego are the changes of its speed and lateral position over the step (the
+        trajectory's ``accel`` is not used for them). In a step without a call the ego keeps its speed along its
+        lane; at the end of its route it is handed back to SUMO to arrive.
         """
         self.place_ego(trajectory.state_at(self.time + self.spec.step_s))
 
