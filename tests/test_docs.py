@@ -1,6 +1,7 @@
 """The documentation names only what the code has: glossary names exist, CSV schemas match the writers."""
 from __future__ import annotations
 
+import json
 import re
 
 from conftest import REPO
@@ -37,3 +38,19 @@ def test_documented_constraints_and_situations_exist():
         assert f"`{constraint.value}`" in OUTPUTS
     for kind in situations.SituationType:
         assert f"`{kind.value}`" in OUTPUTS
+
+
+def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypatch):
+    """docs/extending.md's example, shortened to 40 s (the ego departs at 30 s) and written to tmp_path."""
+    text = (REPO / "docs" / "extending.md").read_text(encoding="utf-8")
+    code = text.split("```python\n", 1)[1].split("```", 1)[0]
+    code = code.replace('Path("results/custom")', f"Path({str(tmp_path)!r})").replace("60.0", "40.0")
+    assert code.count(str(tmp_path)) == 1 and "40.0" in code
+    namespace: dict = {}
+    monkeypatch.chdir(REPO)
+    exec(compile(code, "extending.md", "exec"), namespace)
+    summary = namespace["summary"]
+    assert summary.ego_controller == "custom" and summary.ego_mean_speed_ms > 0
+    run = tmp_path / "highway_dense" / "0"
+    assert json.loads((run / "summary.json").read_text())["ego_controller"] == "custom"
+    assert not (run / "planner.json").exists()  # the example has no summary()

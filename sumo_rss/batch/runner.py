@@ -15,17 +15,20 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import tomli_w
 
 from .. import __version__
+from ..errors import ScenarioError
 from ..files import write_json
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, CollisionInput, ParamResolver
 from ..rss.params import MODEL_VERSION
 from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
-from ..sim.snapshot import EGO_CLASS
+from ..sim.snapshot import EGO_CLASS, WorldSnapshot
+from ..trajectory import TrajectoryState
 from .spec import Task
 
 SUMMARY_FILE = "summary.json"
@@ -84,13 +87,28 @@ def versions() -> dict[str, str]:
             "python": platform.python_version()}
 
 
+class EgoController(Protocol):
+    """Your own ego driver for :func:`run_one` (the EPSILON planner's ``EgoDriver`` is one)."""
+
+    def command(self, snapshot: WorldSnapshot, auditor: Auditor) -> TrajectoryState:
+        """Where the ego is at the end of the coming step (``snapshot.time + step_s``; e.g.
+        ``trajectory.state_at(snapshot.time + step_s)``), from the current snapshot and the live audit
+        (``auditor.owed_by(ego_id)``: the proper responses the ego owes now)."""
+        ...  # pragma: no cover
+
+
 def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool | None = None,
-            on_step: Callable[[float], None] | None = None) -> RunSummary:
+            on_step: Callable[[float], None] | None = None, controller: EgoController | None = None) -> RunSummary:
     """Co-simulate ``spec`` (its own seed), audit every step and write its run directory.
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
     directory either holds a whole run or does not exist. ``on_step(simulated_s)`` is called after every step.
+    ``controller`` drives the ego instead of the scenario's ``ego.controller`` (recorded as 'custom'); its
+    ``summary()`` dict, if it has one, is written as planner.json.
     """
+    if controller is not None and spec.ego is None:
+        raise ScenarioError(spec.source, "ego", "expected an [ego] table: a controller needs an ego to drive",
+                            has_got=False)
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
 
     task = Task(spec, variant)
@@ -108,7 +126,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         network = RoadNetwork.from_file(spec.net_file)
         resolver = param_resolver(spec)
         auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
-        driver = _ego_driver(spec, network, resolver)
+        driver = controller if controller is not None else _ego_driver(spec, network, resolver)
+        report = getattr(driver, "summary", None)
         ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
@@ -130,8 +149,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         simulated = session.steps * spec.step_s
         audit.to_csv(work)
         write_json(work / "rss_params.json", audit.params)
-        if driver is not None:
-            write_json(work / PLANNER_FILE, driver.summary())
+        if report is not None:
+            write_json(work / PLANNER_FILE, report())
         _write_ego_trace(work / "ego_trace.csv", ego_rows)
         episodes = audit.episodes
         ego_blamed = ((episodes.class_a == EGO_CLASS) & episodes.responsible.isin(["a", "both"])) | \
@@ -146,9 +165,10 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             responsible_episodes={k: int(v) for k, v in episodes["responsible"].value_counts().sort_index().items()},
             ego_responsible_episodes=int(ego_blamed.sum()),
             ego_mean_speed_ms=float(sum(r[3] for r in ego_rows) / len(ego_rows)) if ego_rows else None,
-            ego_id=session.ego_id, ego_controller=spec.ego.controller if spec.ego else None,
+            ego_id=session.ego_id,
+            ego_controller="custom" if controller is not None else spec.ego.controller if spec.ego else None,
             collision_events=[asdict(c) for c in session.collisions], versions=run_versions,
-            planner=driver.summary() if driver is not None else None)
+            planner=report() if report is not None else None)
         write_json(work / SUMMARY_FILE, asdict(summary))
         _replace_dir(work, final)
     except BaseException:
