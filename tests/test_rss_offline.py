@@ -54,6 +54,22 @@ def test_online_and_offline_audits_of_one_run_give_identical_csvs(dense_run, tmp
         assert (tmp_path / name).read_bytes() == (dense_run / name).read_bytes(), name
 
 
+def _add_crash_pair() -> None:
+    """A leader 50 m ahead of a follower in lane 1 of the highway (route 'hw'), both at 15 m/s, SUMO's safety off."""
+    for vid, pos in (("leader", 150.0), ("follower", 100.0)):
+        libsumo.vehicle.add(vid, "hw", typeID="car", depart="now", departLane="1", departPos=str(pos),
+                            departSpeed="15")
+        libsumo.vehicle.setSpeedMode(vid, 0)
+        libsumo.vehicle.setLaneChangeMode(vid, 0)
+
+
+def _crash_controls() -> None:
+    """Before a step: the leader brakes at 5 m/s², the follower speeds up at 1 m/s² (while both are on the road)."""
+    if libsumo.vehicle.getIDCount() == 2:
+        libsumo.vehicle.setSpeed("leader", max(0.0, libsumo.vehicle.getSpeed("leader") - 0.5))
+        libsumo.vehicle.setSpeed("follower", libsumo.vehicle.getSpeed("follower") + 0.1)
+
+
 def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_scenario):
     # A follower that keeps accelerating into a stopped leader (see test_rss_scenarios, case a).
     valid_scenario["demand"]["flows"] = []
@@ -63,15 +79,9 @@ def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_s
     run_dir = tmp_path / "run"
     with Session(spec, run_dir, fcd=True) as session:
         libsumo.route.add("hw", ["hw0", "hw1", "hw2"])
-        for vid, pos in (("leader", 150.0), ("follower", 100.0)):
-            libsumo.vehicle.add(vid, "hw", typeID="car", depart="now", departLane="1", departPos=str(pos),
-                                departSpeed="15")
-            libsumo.vehicle.setSpeedMode(vid, 0)
-            libsumo.vehicle.setLaneChangeMode(vid, 0)
+        _add_crash_pair()
         for _ in range(120):
-            if libsumo.vehicle.getIDCount() == 2:
-                libsumo.vehicle.setSpeed("leader", max(0.0, libsumo.vehicle.getSpeed("leader") - 0.5))
-                libsumo.vehicle.setSpeed("follower", libsumo.vehicle.getSpeed("follower") + 0.1)
+            _crash_controls()
             seen = len(session.collisions)
             snap = session.step()
             online.observe(snap, [CollisionInput(c.time, c.collider, c.victim, c.kind)
@@ -317,15 +327,9 @@ def _crash_with_sumo_defaults(folder) -> tuple:
                    "--no-warnings", "true", "--fcd-output", str(fcd), "--fcd-output.acceleration", "true",
                    "--collision-output", str(collisions)])
     try:
-        for vid, pos in (("leader", 150.0), ("follower", 100.0)):
-            libsumo.vehicle.add(vid, "hw", typeID="car", depart="now", departLane="1", departPos=str(pos),
-                                departSpeed="15")
-            libsumo.vehicle.setSpeedMode(vid, 0)
-            libsumo.vehicle.setLaneChangeMode(vid, 0)
+        _add_crash_pair()
         for _ in range(60):
-            if libsumo.vehicle.getIDCount() == 2:
-                libsumo.vehicle.setSpeed("leader", max(0.0, libsumo.vehicle.getSpeed("leader") - 0.5))
-                libsumo.vehicle.setSpeed("follower", libsumo.vehicle.getSpeed("follower") + 0.1)
+            _crash_controls()
             libsumo.simulationStep()
     finally:
         libsumo.close()
