@@ -52,7 +52,8 @@ _TRAIN_INTENT_EXAMPLES = """examples:
   sumo-rss train-intent --train-seeds 0:4 --test-seeds 100,101 --workers 2 --epochs 12
   sumo-rss train-intent --scenarios scenarios/highway_dense.toml --all-samples --duration 60 --out results/hw
   sumo-rss train-intent --scenarios scenarios/merge_onramp.toml --duration 120 --out results/merge_intent
-  sumo-rss train-intent --out sumo_rss/planner/intention/weights --reuse-data   # replace the shipped weights
+  sumo-rss train-intent --out results/intention --reuse-data   # retrain on the data recorded before
+  (to ship new weights, copy intention.pt and intention.json to sumo_rss/planner/intention/weights/)
 """
 
 
@@ -191,7 +192,8 @@ def build_parser() -> argparse.ArgumentParser:
                                         "intention.json.",
                             epilog=_TRAIN_INTENT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     intent.add_argument("--scenarios", nargs="+", type=Path, metavar="TOML",
-                        help="scenario files (default: the shipped intersection, merge and highway scenarios)")
+                        help="scenario files (default: the shipped intersection_tls, intersection_priority and "
+                             "merge_onramp)")
     intent.add_argument("--train-seeds", type=_parse_seeds, default=list(range(10)),
                         help="A:B (B excluded) or 1,2,3 (default 0:10)")
     intent.add_argument("--test-seeds", type=_parse_seeds, default=[100, 101, 102],
@@ -370,7 +372,7 @@ def _cmd_train_intent(args: argparse.Namespace) -> int:
 
 def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
     """Warnings as one line (``--debug`` shows Python's form, with the code that warned)."""
-    print(f"sumo-rss: warning: {message}", file=sys.stderr)
+    print(f"sumo-rss: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -382,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
             if not args.debug:
                 warnings.showwarning = _print_warning
             return handler(args)
-    except SumoRssError as exc:
+    except (SumoRssError, OSError) as exc:  # OSError: a path that cannot be read or written (it names the file)
         if args.debug:
             raise
         print(f"sumo-rss: error: {exc}", file=sys.stderr)

@@ -199,3 +199,26 @@ def test_a_scenario_can_switch_the_network_off(tmp_path, valid_scenario):
     valid_scenario["ego"]["planner"] = {"intention_net": "yes"}
     with pytest.raises(Exception, match="intention_net"):
         load_scenario(write_scenario(tmp_path, valid_scenario))
+
+
+def test_recorded_data_is_reused_only_from_the_same_scenario_files_and_no_samples_is_an_error(tmp_path, monkeypatch):
+    from conftest import SCENARIOS
+    from sumo_rss.errors import SumoRssError
+    from sumo_rss.planner.intention.pipeline import DataPlan, train_intent
+    from sumo_rss.planner.intention.train import TrainSettings
+
+    scenario = tmp_path / "merge_onramp.toml"
+    scenario.write_text((SCENARIOS / "merge_onramp.toml").read_text())
+    recorded = []
+    generate = dataset.generate
+    monkeypatch.setattr(dataset, "generate", lambda *a, **k: recorded.append(a[1]) or generate(*a, **k))
+    plan, out = DataPlan((scenario,), (0,), (100,), 60.0), tmp_path / "out"
+    for _ in range(2):  # the second run reuses both datasets
+        train_intent(plan, out, TrainSettings(epochs=1), reuse_data=True, show_progress=False)
+    assert recorded == [(0,), (100,)]
+    scenario.write_text(scenario.read_text().replace("veh_per_hour = 600", "veh_per_hour = 900"))  # same name
+    train_intent(plan, out, TrainSettings(epochs=1), reuse_data=True, show_progress=False)
+    assert recorded == [(0,), (100,)] * 2
+    highway = DataPlan((SCENARIOS / "highway_dense.toml",), (0,), (100,), 20.0)
+    with pytest.raises(SumoRssError, match="no samples in .*highway_dense.toml at seeds 0: .*--all-samples"):
+        train_intent(highway, tmp_path / "hw", TrainSettings(epochs=1), show_progress=False)

@@ -6,6 +6,7 @@ entries match), ``intention.pt`` (weights) and ``intention.json`` (the card: dat
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ...errors import SumoRssError
 from ...files import atomic_path, write_json
 from . import dataset
 from .estimator import FORMAT, save_weights
@@ -40,13 +42,19 @@ class DataPlan:
 def _dataset(plan: DataPlan, seeds: tuple[int, ...], path: Path, reuse: bool, workers: int,
              bar: Callable[[], None]) -> dict[str, np.ndarray]:
     stamp = path.with_suffix(".json")
-    wanted = {**plan.card(), "seeds": list(seeds)}
+    # The files' contents too: an edited scenario of the same name must not reuse the old recording.
+    wanted = {**plan.card(), "seeds": list(seeds),
+              "scenario_sha256": [hashlib.sha256(p.read_bytes()).hexdigest() for p in plan.scenarios]}
     if reuse and path.is_file() and stamp.is_file() and json.loads(stamp.read_text()) == wanted:
         for _ in range(len(plan.scenarios) * len(seeds)):
             bar()
         return dataset.load(path)
     data = dataset.generate(list(plan.scenarios), seeds, duration_s=plan.duration_s, workers=workers,
                             all_samples=plan.all_samples, progress=bar)
+    if len(data["target"]) == 0:
+        raise SumoRssError(f"no samples in {', '.join(str(p) for p in plan.scenarios)} at seeds "
+                           f"{', '.join(map(str, seeds))}: only cars whose lane branches or ends give samples (the "
+                           "highway gives none without --all-samples), and each needs 2 s of past and 3 s of future")
     dataset.save(data, path)
     write_json(stamp, wanted)
     return data
