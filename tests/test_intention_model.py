@@ -137,7 +137,9 @@ def test_weights_round_trip_and_bad_files_fall_back_to_the_rules_with_a_warning(
     torch.save({"format": 1, "architecture": {**ARCHITECTURE, "hidden": 32},
                 "state_dict": net.state_dict()}, tmp_path / "shapes.pt")
     (tmp_path / "junk.pt").write_bytes(b"not a torch file")
-    for bad in ("missing.pt", "shapes.pt", "junk.pt"):
+    broken = {k: torch.full_like(v, float("nan")) if v.is_floating_point() else v for k, v in net.state_dict().items()}
+    torch.save({"format": 1, "architecture": ARCHITECTURE, "state_dict": broken}, tmp_path / "nan.pt")
+    for bad in ("missing.pt", "shapes.pt", "junk.pt", "nan.pt"):
         with pytest.warns(UserWarning, match="rule-based intention belief"):
             assert load_estimator(tmp_path / bad) is None
 

@@ -50,6 +50,8 @@ def load_estimator(path: Path | None = None) -> IntentionEstimator | None:
         net = IntentionNet(lane_channels=tuple(architecture["lane_channels"]), embedding=architecture["embedding"],
                            hidden=architecture["hidden"], mlp=architecture["mlp"])
         net.load_state_dict(payload["state_dict"])
+        if not all(torch.isfinite(value).all() for value in net.state_dict().values()):
+            raise ValueError("the weights hold NaN or infinite values")
     except Exception as exc:  # any unusable file means the rules; say why, never crash the planner
         warnings.warn(f"intention weights {path} not usable ({type(exc).__name__}: {exc}); "
                       "using the rule-based intention belief instead", stacklevel=2)
