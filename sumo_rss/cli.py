@@ -286,7 +286,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 def _cmd_audit(args: argparse.Namespace) -> int:
     from .batch.runner import param_resolver
-    from .files import write_json
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
@@ -318,7 +317,6 @@ def _cmd_audit(args: argparse.Namespace) -> int:
                        collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
                        run_id=run_id, signal_rule=signal_rule)
     result.to_csv(args.out)
-    write_json(args.out / "rss_params.json", result.params)
     print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "
           f"collisions -> {args.out}")
     return 0

@@ -1,6 +1,7 @@
 """The ego hook: a planner's trajectory is executed exactly by libsumo (moveToXY + setPreviousSpeed)."""
 from __future__ import annotations
 
+import json
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -122,3 +123,5 @@ def test_the_fcd_of_a_placed_ego_gives_the_online_audit_offline(valid_scenario, 
     assert (on.episodes.class_a == "ego").any() or (on.episodes.class_b == "ego").any()
     for name in ("episodes", "violations"):
         assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name
+    on.to_csv(tmp_path / "written")  # the CSVs and the parameters they were judged with
+    assert json.loads((tmp_path / "written" / "rss_params.json").read_text()) == on.params

@@ -148,7 +148,6 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         wall = time.perf_counter() - started
         simulated = session.steps * spec.step_s
         audit.to_csv(work)
-        write_json(work / "rss_params.json", audit.params)
         if report is not None:
             write_json(work / PLANNER_FILE, report())
         _write_ego_trace(work / "ego_trace.csv", ego_rows)

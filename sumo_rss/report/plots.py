@@ -53,9 +53,9 @@ def pair_timeline(states: pd.DataFrame, episode: pd.Series) -> tuple[Figure, pd.
         ax.axvspan(episode.t_b_s, episode.t_end_s, color="#d62728", alpha=0.12, label="danger")
         ax.set_ylabel("m")
         ax.legend(loc="upper right", fontsize="small")
-    axes[0].set_title(f"{episode.episode_key} ({episode.run_id}): "
+    axes[0].set_title(f"{episode.episode_key} ({episode.run_id}):\n"
                       f"a owes {episode.owed_a or '-'}, b owes {episode.owed_b or '-'}; "
-                      f"responsible: {episode.responsible}", fontsize="small")
+                      f"responsible: {episode.responsible}", fontsize="small")  # two lines: the run ids are long
     axes[1].set_xlabel("time [s]")
     fig.tight_layout()
     return fig, data

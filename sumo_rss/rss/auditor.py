@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..files import write_csv
+from ..files import write_csv, write_json
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
@@ -87,6 +87,9 @@ class ParamResolver:
         return table
 
 
+PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
+
+
 @dataclass
 class AuditResult:
     episodes: pd.DataFrame
@@ -96,7 +99,8 @@ class AuditResult:
     pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
 
     def to_csv(self, directory: str | Path) -> None:
-        """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced) atomically."""
+        """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced) and the parameters
+        they were judged with, rss_params.json, atomically."""
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         frames = [("episodes", self.episodes), ("violations", self.violations), ("collisions", self.collisions)]
@@ -104,6 +108,7 @@ class AuditResult:
             frames.append(("pair_states", self.pair_states))
         for name, frame in frames:
             write_csv(frame, directory / f"{name}.csv")
+        write_json(directory / PARAMS_FILE, self.params)
 
 
 class Auditor:
