@@ -8,7 +8,8 @@ real time; ego mean speed >= the sumo baseline's on the same seeds while never r
 (behaviour + SSC) median <= 40 ms with 20 agents; lower RMS jerk with SSC than with the behaviour trajectory.
 For reading the speed comparison, each run also gives the ego's mean speed from SETTLED_S after its departure
 (without the response to where it was inserted) and how long the ego was responsible, summed over its episodes
-(which may overlap) [s].
+(which may overlap) [s]. The closed-loop target is judged on the real-time factor from the ego's departure on
+(`real_time_factor_with_ego`): the whole run's factor also counts the first 30 s, before the planner drives.
 """
 from __future__ import annotations
 
@@ -92,8 +93,15 @@ def closed_loop(controller: str, seed: int) -> dict:
     planner = replace(spec.ego.planner, motion_layer=controller != "epsilon_behaviour")
     spec = replace(spec, ego=replace(spec.ego, controller=controller.split("_")[0], planner=planner))
     out = Path(tempfile.mkdtemp(prefix="sumo_rss_bench_"))
+    departed: list[float] = []  # wall clock when the simulation reached the ego's departure time
+
+    def clock(simulated: float) -> None:
+        if not departed and simulated >= spec.ego.depart_s - 1e-9:
+            departed.append(time.perf_counter())
+
     try:
-        summary = run_one(spec, out)
+        summary = run_one(spec, out, on_step=clock)
+        finished = time.perf_counter()
         trace = pd.read_csv(next(out.rglob("ego_trace.csv")))
         episodes = pd.read_csv(next(out.rglob("episodes.csv")))
     finally:
@@ -105,7 +113,9 @@ def closed_loop(controller: str, seed: int) -> dict:
     responsible_s = float(episodes["duration_s"][ego_responsible].sum())
     ego_collisions = sum(summary.ego_id in (c["collider"], c["victim"]) for c in summary.collision_events)
     planner = summary.planner or {}
-    return {"real_time_factor": summary.real_time_factor, "ego_mean_speed_ms": summary.ego_mean_speed_ms,
+    with_ego = (summary.sim_time_s - spec.ego.depart_s) / (finished - departed[0])  # incl. writing the outputs
+    return {"real_time_factor": summary.real_time_factor, "real_time_factor_with_ego": with_ego,
+            "ego_mean_speed_ms": summary.ego_mean_speed_ms,
             "ego_mean_speed_settled_ms": float(settled.mean()), "ego_responsible_s": responsible_s,
             "ego_responsible_episodes": summary.ego_responsible_episodes, "ego_collisions": ego_collisions,
             "lane_changes": planner.get("lane_changes_completed"), "cycle_ms_median": planner.get("cycle_ms_median"),
@@ -129,7 +139,7 @@ def main() -> None:
         "p99_behaviour_cycle_20_agents_le_80ms": twenty["behaviour_p99_ms"] <= 80.0,
         "median_full_cycle_20_agents_le_40ms": twenty["median_ms"] <= 40.0,
         "ssc_lowers_rms_jerk": jerk["epsilon"] < jerk["epsilon_behaviour"],
-        "closed_loop_ge_5x": min(r["real_time_factor"] for r in comparison["epsilon"].values()) >= 5.0,
+        "closed_loop_ge_5x": min(r["real_time_factor_with_ego"] for r in comparison["epsilon"].values()) >= 5.0,
         "ego_speed_ge_sumo": speed["epsilon"] >= speed["sumo"],
         "never_responsible": all(r["ego_responsible_episodes"] == 0 for r in comparison["epsilon"].values())}
     figures["ego_mean_speed_ms"] = speed

@@ -332,18 +332,23 @@ def _cmd_nets(args: argparse.Namespace) -> int:
     dirs = network_dirs(root)
     if not dirs:
         raise SumoRssError(f"{root}: no networks found (expected <name>/<name>.netccfg)")
-    stale = []
-    for d in dirs:
-        if args.action == "build":
-            print(f"built {build_network(d)}")
+    stale, broken = [], []
+    for d in dirs:  # every network is tried: one that netconvert refuses does not hide the others
+        try:
+            if args.action == "build":
+                print(f"built {build_network(d)}")
+                continue
+            with tempfile.TemporaryDirectory() as tmp:
+                fresh = build_network(d, Path(tmp) / "check.net.xml").read_text(encoding="utf-8")
+        except SumoRssError as exc:
+            print(f"sumo-rss: error: {exc}", file=sys.stderr)
+            broken.append(d.name)
             continue
-        with tempfile.TemporaryDirectory() as tmp:
-            fresh = build_network(d, Path(tmp) / "check.net.xml").read_text(encoding="utf-8")
         committed = (d / f"{d.name}.net.xml").read_text(encoding="utf-8")
         same = without_generator_header(fresh) == without_generator_header(committed)
         print(f"{d.name}: {'up to date' if same else 'STALE (run: sumo-rss nets build)'}")
         stale += [] if same else [d.name]
-    return 1 if stale else 0
+    return EXIT_BAD_INPUT if broken else 1 if stale else 0
 
 
 def _cmd_train_intent(args: argparse.Namespace) -> int:

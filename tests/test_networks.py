@@ -3,6 +3,9 @@ junction logic its scenarios rely on."""
 from __future__ import annotations
 
 import math
+import shutil
+import subprocess
+import sys
 
 import pytest
 import sumolib
@@ -81,3 +84,18 @@ def test_priority_intersection_minor_approaches_must_stop():
     for edge_id, must_stop in (("N_in", True), ("S_in", True), ("W_in", False), ("E_in", False)):
         states = {c.getState() for c in net.getEdge(edge_id).getLane(0).getOutgoing()}
         assert (states == {"s"}) == must_stop, (edge_id, states)
+
+
+def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_path):
+    root = tmp_path / "nets"
+    shutil.copytree(NETWORKS, root)
+    (root / "merge" / "merge.con.xml").unlink()  # netconvert refuses the merge
+    edges = root / "highway" / "highway.edg.xml"
+    edges.write_text(edges.read_text().replace('speed="33.33"', 'speed="30.00"'))  # the highway is stale
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "nets", "check", "--root", str(root)],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 2
+    assert proc.stdout.splitlines() == ["highway: STALE (run: sumo-rss nets build)",
+                                        "intersection_priority: up to date", "intersection_tls: up to date"]
+    assert proc.stderr.splitlines() == [f"sumo-rss: error: netconvert failed for {root / 'merge' / 'merge.netccfg'}: "
+                                        "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]

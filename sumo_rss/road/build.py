@@ -26,7 +26,7 @@ def build_network(network_dir: Path, output: Path | None = None) -> Path:
         cmd += ["--output-file", str(Path(output).resolve())]
     proc = subprocess.run(cmd, cwd=network_dir, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
-        raise SumoRssError(f"netconvert failed for {config}:\n{proc.stderr.strip()}")
+        raise SumoRssError(f"netconvert failed for {config}: {' '.join(proc.stderr.split())}")  # one line
     return Path(output) if output is not None else network_dir / f"{network_dir.name}.net.xml"
 
 
