@@ -14,7 +14,7 @@ from pathlib import Path
 from . import __version__
 from .errors import SumoRssError
 from .rss.params import PRESETS
-from .scenario import CONTROLLERS
+from .scenario import CONTROLLERS, MAX_SEED
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -78,8 +78,6 @@ def _positive_float(text: str) -> float:
 
 
 def _seed(text: str) -> int:
-    from .scenario import MAX_SEED
-
     if not text.isdigit() or int(text) > MAX_SEED:
         raise argparse.ArgumentTypeError(f"expected an integer in [0, {MAX_SEED}], got {text!r}")
     return int(text)

@@ -384,9 +384,10 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
     ids = [fl.id for fl in flows]
     if len(set(ids)) != len(ids):
         raise t.error("flows", "expected unique flow ids", ids)
-    for name in names & {BACKGROUND_DISTRIBUTION, EGO_TYPE}:
-        raise t.error(f"vtypes.{name}", f"expected another name: {BACKGROUND_DISTRIBUTION!r} and {EGO_TYPE!r} are "
-                                        "the route file's own vType names", name)
+    reserved = sorted(names & {BACKGROUND_DISTRIBUTION, EGO_TYPE})
+    if reserved:
+        raise t.error(f"vtypes.{reserved[0]}", f"expected another name: {BACKGROUND_DISTRIBUTION!r} and {EGO_TYPE!r} "
+                                               "are the route file's own vType names", reserved[0])
     drawing = [fl.id for fl in flows if fl.vtype is None]
     if drawing and not any(v.probability > 0 for v in vtypes):  # 0: only for flows that name the vType
         raise t.error("vtypes", f"expected a vType with probability > 0 for the flows that draw from the mix "

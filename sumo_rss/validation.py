@@ -63,9 +63,9 @@ class TableReader:
     def misspelt(self, keys: Iterable[str]) -> str:
         """' (did you mean X for Y?)' for a key of the table that is close to one of ``keys``, else ''."""
         for given in self._data:
-            close = difflib.get_close_matches(given, [k for k in keys if k != given], n=1, cutoff=0.75)
+            close = _closest(given, [k for k in keys if k != given])
             if close and given not in self._known:
-                return f" (did you mean {close[0]!r} for {given!r}?)"
+                return f" (did you mean {close!r} for {given!r}?)"
         return ""
 
     def _take(self, key: str, default: Any) -> Any:
@@ -161,8 +161,8 @@ class TableReader:
         unknown = [k for k in self._data if k not in self._seen]
         if unknown:
             known = sorted(self._known - set(self._data) | self._seen)
-            close = difflib.get_close_matches(unknown[0], known, n=1, cutoff=0.75)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            close = _closest(unknown[0], known)
+            hint = f" (did you mean {close!r}?)" if close else ""
             hint += f"; known keys here: {', '.join(known)}" if known else ""
             raise self.error(unknown[0], f"unknown key{hint}")
 
@@ -175,6 +175,12 @@ def _range_text(noun: str, lo: float | None, hi: float | None, lo_exclusive: boo
     if hi is not None:
         return f"{noun} <= {hi:g}"
     return noun
+
+
+def _closest(word: str, candidates: Sequence[str]) -> str | None:
+    """The candidate ``word`` was most likely a misspelling of (None if none is close)."""
+    close = difflib.get_close_matches(word, candidates, n=1, cutoff=0.75)
+    return close[0] if close else None
 
 
 def one_of(reader: TableReader, keys: Sequence[str]) -> str:

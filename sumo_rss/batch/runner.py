@@ -127,7 +127,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         resolver = param_resolver(spec)
         auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)
-        report = getattr(driver, "summary", None)
+        report = getattr(driver, "summary", None)  # planner.json, and summary.json's 'planner'
         ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
@@ -148,8 +148,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         wall = time.perf_counter() - started
         simulated = session.steps * spec.step_s
         audit.to_csv(work)
-        if report is not None:
-            write_json(work / PLANNER_FILE, report())
+        planner = report() if report is not None else None
+        if planner is not None:
+            write_json(work / PLANNER_FILE, planner)
         _write_ego_trace(work / "ego_trace.csv", ego_rows)
         episodes = audit.episodes
         ego_blamed = ((episodes.class_a == EGO_CLASS) & episodes.responsible.isin(["a", "both"])) | \
@@ -167,7 +168,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             ego_id=session.ego_id,
             ego_controller="custom" if controller is not None else spec.ego.controller if spec.ego else None,
             collision_events=[asdict(c) for c in session.collisions], versions=run_versions,
-            planner=report() if report is not None else None)
+            planner=planner)
         write_json(work / SUMMARY_FILE, asdict(summary))
         _replace_dir(work, final)
     except BaseException:

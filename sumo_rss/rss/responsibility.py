@@ -197,19 +197,17 @@ class ResponsibilityTracker:
         """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode). An
         episode that ended at this step (step 1 of :meth:`step`) is the collision's too: the pair was in danger
         up to the contact."""
-        hit = np.flatnonzero(self._open.keys == pair_key)
-        if hit.size == 0:
+        hit = self._open.keys == pair_key
+        if hit.any():
+            record = self._close(hit, time, collision=(collider, victim))[0]
+        else:
             record = self._ended_now.pop(pair_key, None)
-            if record is not None:
-                self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
-                record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
-                              victim=victim, ended_by="collision")
-            return record
-        mask = np.zeros(len(self._open), dtype=bool)
-        mask[hit] = True
+            if record is None:
+                return None
+            record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
+                          victim=victim, ended_by="collision")
         self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
-        closed = self._close(mask, time, collision=(collider, victim))
-        return closed[0]
+        return record
 
     def finish(self) -> None:
         """Close every open episode at the last observed time (end of data)."""
