@@ -155,8 +155,8 @@ class Auditor:
             situations, keys = road, road_keys
         new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
         self._tracker.step(StepInput(
-            time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, vclass=snapshot.vclass,
-            accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
+            time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
+            vclass=snapshot.vclass, accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
         if self.trace_class is not None:
             self._trace(snapshot.time, keys, situations)
         if self._signal_rule is not None:

@@ -43,6 +43,7 @@ class StepInput:
     keys: np.ndarray  # int64 pair keys, unique
     situations: PairSituations
     ids: np.ndarray  # vehicle ids of the snapshot
+    uids: np.ndarray  # int64 per snapshot row: a number for each vehicle id, the same at every step
     vclass: np.ndarray
     accel: np.ndarray  # [m/s²] per snapshot row
     params: RssParamArrays  # per snapshot row
@@ -56,6 +57,7 @@ class _Episodes:
     keys: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     a_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     b_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
+    uids: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))  # of (a, b)
     a_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     b_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
@@ -153,7 +155,7 @@ class ResponsibilityTracker:
         # episodes whose pair is safe now (or no longer a candidate, i.e. far apart) end at this step. A collision
         # reported at this step still joins them (collide): SUMO's default collision action removes the collider
         # or moves it far away in the very step of the collision.
-        gone = ~(np.isin(self._open.a_id, step.ids) & np.isin(self._open.b_id, step.ids))
+        gone = ~np.isin(self._open.uids, step.uids).all(axis=1)
         self._ended_now = dict(zip(self._open.keys[gone].tolist(), self._close(gone, step.time, end_of_data=True)))
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
@@ -237,6 +239,7 @@ class ResponsibilityTracker:
             self._episode_count[int(k)] = self._episode_count.get(int(k), 0) + 1
         fresh = _Episodes(
             keys=keys.astype(np.int64), a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
+            uids=np.column_stack([step.uids[a], step.uids[b]]),
             a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
             kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
             must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
