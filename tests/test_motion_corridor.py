@@ -22,7 +22,7 @@ EGO_S = 100.3  # [m]
 def road():
     net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
     frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["hw0_1"])[0]), net.edge_indices(["hw0", "hw1"])))
-    return RoadLayer(frame, WIDTH, SETTINGS)
+    return RoadLayer(frame, LENGTH, WIDTH, SETTINGS)
 
 
 def _agents(s, d, n=1):
@@ -112,19 +112,53 @@ def test_a_corridor_ends_before_a_blocked_seed_late_in_the_horizon(road):
         assert not grid.occupied[cube[4]:cube[5] + 1, cube[0]:cube[1] + 1, cube[2]:cube[3] + 1].any()
 
 
-def test_the_road_goes_on_past_the_end_of_the_route_but_not_past_a_lane_that_ends():
-    def free_centre_cells(net, lane, route, ego_s):
-        frame = RoadFrame.build(lane_chains(net, int(net.lane_indices([lane])[0]), net.edge_indices(route)))
-        grid = occupancy(RoadLayer(frame, WIDTH, SETTINGS), TIMES, ego_s, LENGTH, WIDTH,
-                         _agents(np.full(26, -1e4), np.zeros(26)), np.inf, SETTINGS)
-        s, d = _cells(grid)
-        return s, ~grid.occupied[0][:, np.isclose(d, 0.0)].ravel()
+def _free_centre_cells(net, lane, route, ego_s, heading=None):
+    """The s centres of the grid's cells on d = 0 and whether they are free in the first slice, with no agents."""
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices([lane])[0]), net.edge_indices(route)))
+    grid = occupancy(RoadLayer(frame, LENGTH, WIDTH, SETTINGS), TIMES, ego_s, LENGTH, WIDTH,
+                     _agents(np.full(26, -1e4), np.zeros(26)), np.inf, SETTINGS, heading)
+    s, d = _cells(grid)
+    return s, ~grid.occupied[0][:, np.isclose(d, 0.0)].ravel()
 
+
+def test_the_road_goes_on_past_both_ends_of_the_network_but_not_past_a_lane_that_ends():
     # hw2 is the last edge of the highway (899.87 m): the car leaves the network there, so its lane goes on.
     highway = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
-    s, free = free_centre_cells(highway, "hw2_1", ["hw2"], 880.0)
+    s, free = _free_centre_cells(highway, "hw2_1", ["hw2"], 880.0)
     assert free[(s > 880.0) & (s < 1000.0)].all()
-    # The acceleration lane (270.31 m) ends for good: the ego's centre may not go past its end (minus half a cell).
+    # hw0 starts the network: a car that has just entered has its rear behind the start of its lane.
+    s, free = _free_centre_cells(highway, "hw0_1", ["hw0"], 1.0)
+    assert free[(s > -10.0) & (s < 100.0)].all()
+    # The acceleration lane (to 270.56 m) ends for good: no centre in a free cell puts the front bumper past its
+    # end (the body's front reaches half a cell and half the car's length beyond the centre's cell centre).
     merge = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
-    s, free = free_centre_cells(merge, "mw_merge_0", ["mw_merge", "mw_out"], 200.0)
-    assert free[(s > 200.0) & (s < 269.0)].all() and not free[s > 271.0].any()
+    s, free = _free_centre_cells(merge, "mw_merge_0", ["mw_merge", "mw_out"], 200.0)
+    end = 270.5588739
+    assert not free[s + 0.5 * SETTINGS.s_res + 0.5 * LENGTH > end].any()
+    assert free[(s > 200.0) & (s + 0.5 * SETTINGS.s_res + 0.5 * LENGTH + SETTINGS.s_res <= end)].all()
+
+
+def test_a_turned_ego_is_kept_clear_of_agents_by_its_turned_footprint(road):
+    # Turned by 0.44 rad (merging at walking pace) the body reaches 0.5·(4.5·sin + 1.8·cos) = 1.78 m across and
+    # 0.5·(4.5·cos + 1.8·sin) = 2.43 m along, not 0.9 m and 2.25 m.
+    heading = np.full(26, 0.44)
+    reach_d = 0.5 * (LENGTH * np.sin(0.44) + WIDTH * np.cos(0.44))
+    reach_s = 0.5 * (LENGTH * np.cos(0.44) + WIDTH * np.sin(0.44))
+    agent_s = EGO_S + 20.0
+    agent = _agents(np.full(26, agent_s), np.full(26, 3.5))
+    grid = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, agent, np.inf, SETTINGS, heading)
+    straight = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, agent, np.inf, SETTINGS)
+    s, d = _cells(grid)
+    # The agent (4.5 × 1.8 m, straight, in the left lane): its box plus the turned footprint and the margin.
+    half_s, half_d = 0.5 * LENGTH + reach_s + SETTINGS.margin, 0.5 * WIDTH + reach_d + SETTINGS.margin
+    touches = (np.abs(s - agent_s)[:, None] <= half_s + 0.5 * SETTINGS.s_res) & \
+        (np.abs(d - 3.5)[None, :] <= half_d + 0.5 * SETTINGS.d_res)
+    # The road edges are the unturned body's: the same as with no agent and no heading.
+    empty = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(np.full(26, -1e3), np.zeros(26)), np.inf, SETTINGS)
+    assert np.array_equal(grid.occupied[0], touches | empty.occupied[0])
+    assert (grid.occupied[0] & ~straight.occupied[0]).any()  # more is blocked than for the unturned body
+    # Turned only at the last sample: the slices before its neighbour keep the unturned footprint.
+    late = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, agent, np.inf, SETTINGS,
+                     np.where(np.arange(26) == 25, 0.44, 0.0))
+    assert np.array_equal(late.occupied[:24], straight.occupied[:24])
+    assert np.array_equal(late.occupied[24:], grid.occupied[24:])

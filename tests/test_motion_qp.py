@@ -152,6 +152,29 @@ def test_an_infeasible_corridor_is_reported_not_crashed_on():
     assert failure.value.reason == "qp_infeasible"
 
 
+def test_a_stop_whose_polishing_fails_is_refined_not_refused():
+    """An ego at 1.8 m/s stopping 1.45 m on (the corridor of a straight lane): osqp's polishing fails on the
+    degenerate active set (ṡ ≥ 0 meeting the stop) and its ADMM iterate breaks ṡ ≥ 0 by 2.8e-5 m/s; refined, the
+    feasible QP is solved to the tolerance instead of being refused as 'qp_inaccurate'."""
+    v0, stop = 1.8, 1.45
+    brake = v0 * v0 / (2.0 * stop)
+    knots = np.append(np.round(np.arange(0.0, 4.81, 0.4), 10), 5.0)
+    s_low = np.array([98.5, 97.5, 96.5, 93.5] + [89.5] * 9)
+    cubes = np.stack([np.column_stack([s_low, np.full(13, 101.5)]), np.tile([-4.1, 4.1], (13, 1))], axis=1)
+    ref_t = np.round(np.arange(0.0, 5.01, 0.2), 10)
+    ref_s = 100.0 + np.where(ref_t < v0 / brake, v0 * ref_t - 0.5 * brake * ref_t ** 2, stop)
+    problem = QpProblem(knots, cubes, np.array([[100.0, v0, -brake], [0.0, 0.0, 0.0]]),
+                        np.array([[100.0 + stop, 0.0], [0.0, 0.0]]), ref_t, np.column_stack([ref_s, 0 * ref_t]),
+                        np.array([1.0, 100.0]), BOUNDS)
+    solver = SscSolver()
+    curve = solver.solve(problem)
+    assert solver.refinements == 1
+    t = np.linspace(0.0, 5.0, 2001)
+    assert curve.evaluate(t, 1)[:, 0].min() >= -TOL
+    assert curve.evaluate(np.array([5.0]), 0)[0] == pytest.approx([100.0 + stop, 0.0], abs=TOL)
+    assert np.all(np.diff(curve.evaluate(t, 0)[:, 0]) >= -TOL)
+
+
 def test_bernstein_basis_partitions_unity():
     tau = np.linspace(0.0, 1.0, 11)
     assert np.allclose(bernstein(5, tau).sum(axis=1), 1.0)
@@ -168,6 +191,20 @@ def test_low_speed_primitive_joins_the_states_and_never_reverses():
     # d follows arc length: no sideways motion without forward motion.
     assert np.all(np.abs(vd[vs == 0.0]) == 0.0)
     assert np.allclose(np.gradient(s, t), vs, atol=0.05)
+
+
+def test_low_speed_primitive_moves_sideways_only_while_it_moves_forward():
+    """From 2 m/s to stopped 0.6 m on in 1 s, then on to 2 m on: the first s(t) quintic overshoots its knot to
+    0.6246 m and is held there into the next second; d(s) (slope 0.3) must hold too, not jump to the next piece's
+    value at 0.0246 m past its start (it moved 7 mm sideways at standstill)."""
+    t = np.round(np.arange(0.0, 2.0 + 1e-9, 0.05), 10)
+    motion = np.array([[0.0, 2.0, 0.0], [0.6, 0.0, 0.0], [2.0, 2.0, 0.0]])
+    path = np.array([[0.0, 0.3, 0.0], [0.18, 0.3, 0.0], [0.6, 0.3, 0.0]])
+    s, d, vs, vd, _, _ = low_speed_primitive(t, np.array([1.0, 2.0]), motion, path)
+    assert s.max() == pytest.approx(2.0) and np.any(s[(t > 1.0) & (t < 1.5)] > 0.62)  # held past the knot
+    assert np.allclose(d, 0.3 * s, atol=1e-9)  # the straight path, wherever the car is on it
+    still = np.diff(s) == 0.0
+    assert still.any() and np.all(np.diff(d)[still] == 0.0) and np.all(vd[vs == 0.0] == 0.0)
 
 
 def test_low_speed_primitive_keeps_the_behaviour_timing_and_path():

@@ -79,6 +79,7 @@ class EgoDriver:
             ms = np.array(motion.stats.cycle_times) * 1000.0
             stats["motion"] = {"outcomes": dict(motion.stats.outcomes),
                                "failures": dict(sorted(motion.stats.failures.items())),
+                               "qp_refined": motion.solver.refinements,
                                "ms_median": float(np.median(ms)) if ms.size else None,
                                "ms_p99": float(np.percentile(ms, 99)) if ms.size else None}
         if times.size:

@@ -63,11 +63,14 @@ def low_speed_primitive(t: np.ndarray, t_knots: np.ndarray, motion: np.ndarray,
     s = np.maximum.accumulate(s_q)  # where a quintic would reverse, the car waits
     held = (s > s_q + 1e-9) | (vs < 0.0)
     vs, a_s = np.where(held, 0.0, vs), np.where(held, 0.0, a_s)
+    # d is a function of s alone, each piece taken by where the car is, not by the time: an s(t) quintic that
+    # overshoots its knot is held there into the next time piece, and d must not move while s does not.
     at = np.maximum.accumulate(motion[:, 0])
+    on_piece = np.clip(np.searchsorted(at, s, side="right") - 1, 0, len(t_knots) - 1)
     d, slope, bend = np.empty_like(t), np.zeros_like(t), np.zeros_like(t)
     d_now = float(path[0, 0])
     for k in range(len(t_knots)):
-        on, length = piece == k, at[k + 1] - at[k]
+        on, length = on_piece == k, at[k + 1] - at[k]
         if length <= STANDING:
             d[on] = d_now
             continue

@@ -28,8 +28,8 @@ class MotionSettings:
     """``enabled`` False executes the behaviour trajectory as it is (the comparison baseline)."""
 
     enabled: bool = True
-    weight_s: float = 1.0  # [1/s³] reference-tracking weight of s against the jerk cost (weight_proximity)
-    weight_d: float = 100.0  # [1/s³] and of d: the lateral profile the behaviour layer checked is kept
+    weight_s: float = 1.0  # [1/s⁵] tracking weight of s against the jerk cost (∫jerk²dt: m²/s⁵)
+    weight_d: float = 100.0  # [1/s⁵] and of d: the lateral profile the behaviour layer checked is kept
     low_speed: float = 2.0  # [m/s] at or below this the quintic primitive is preferred
     keep_previous: float = 1.0  # [s] how long after planning a trajectory may stand in for failed ones
     corridor: CorridorSettings = CorridorSettings()
@@ -68,7 +68,7 @@ class MotionLayer:
         self.solver = SscSolver()
         self.stats = MotionStats()
         self._previous: tuple[float, FrenetPlan, Trajectory] | None = None
-        self._roads: dict[tuple[RoadFrame, float], RoadLayer] = {}  # per planning frame and ego width
+        self._roads: dict[tuple[RoadFrame, float, float], RoadLayer] = {}  # per planning frame and ego size
 
     def plan(self, inp: MotionInput, backup: Callable[[], tuple[FrenetPlan, Trajectory]]
              ) -> tuple[FrenetPlan, Trajectory]:
@@ -98,7 +98,7 @@ class MotionLayer:
         s, d, heading, speed, accel = inp.ego
         start = self._initial_state(inp)
         grid = occupancy(self._road(inp), inp.t, float(s[0]), inp.ego_length, inp.ego_width, inp.agents,
-                         inp.stop_s, cfg.corridor)
+                         inp.stop_s, cfg.corridor, heading)
         corridor = build_corridor(grid, s, d, float(speed[0]))
         k_end = int(corridor.cells[-1, 5])
         t_out = np.arange(0.0, float(inp.t[k_end]) + 0.5 * self.output_step, self.output_step)
@@ -118,12 +118,12 @@ class MotionLayer:
         return FrenetPlan(inp.frame, inp.now + t_out, s_o, d_o, np.maximum(vs, 0.0), vd, a_s, a_d), "ssc"
 
     def _road(self, inp: MotionInput) -> RoadLayer:
-        key = (inp.frame, inp.ego_width)
+        key = (inp.frame, inp.ego_length, inp.ego_width)
         road = self._roads.get(key)
         if road is None:
             if len(self._roads) > 64:
                 self._roads.clear()
-            road = self._roads[key] = RoadLayer(inp.frame, inp.ego_width, self.settings.corridor)
+            road = self._roads[key] = RoadLayer(inp.frame, inp.ego_length, inp.ego_width, self.settings.corridor)
         return road
 
     def _initial_state(self, inp: MotionInput) -> np.ndarray:

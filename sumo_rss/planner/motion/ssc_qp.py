@@ -52,7 +52,7 @@ class DynamicBounds:
 class QpProblem:
     """One instance: ``knots`` [N+1] segment boundaries [s] (relative), ``cubes[j, dim]`` = (low, high) position
     bounds [m], ``start[dim]`` = (p, v, a) and ``end[dim]`` = (p, v), reference samples at ``ref_t`` [K] with
-    positions ``ref[K, 2]``, weights ``weight`` [1/s³] (a number, or one per dimension (s, d))."""
+    positions ``ref[K, 2]``, weights ``weight`` [1/s⁵] (a number, or one per dimension (s, d))."""
 
     knots: np.ndarray
     cubes: np.ndarray  # [N, 2, 2]
@@ -233,14 +233,19 @@ def relative_to_start(problem: QpProblem) -> QpProblem:
 class SscSolver:
     """osqp, one solver per number of segments: the matrices' values are updated in place and osqp warm-starts
     from that solver's previous solution. ADMM stops at ``eps``; polishing then solves the KKT system of the
-    active set exactly. A solution whose equalities or bounds are off by more than ``tolerance`` is refused."""
+    active set exactly. When polishing fails, osqp still reports "solved" with the ADMM iterate, whose constraints
+    are only met to about ``eps``: such a solution is refined from where it is with ADMM at ``refine_eps``. A
+    solution whose equalities or bounds are then still off by more than ``tolerance`` is refused."""
 
-    def __init__(self, eps: float = 1e-5, max_iter: int = 4000, tolerance: float = 1e-6):
+    def __init__(self, eps: float = 1e-5, max_iter: int = 4000, tolerance: float = 1e-6, refine_eps: float = 1e-9,
+                 refine_max_iter: int = 20000):
         self.settings = dict(verbose=False, eps_abs=eps, eps_rel=eps, polishing=True, max_iter=max_iter,
                              warm_starting=True)
+        self.refine = dict(eps_abs=refine_eps, eps_rel=refine_eps, max_iter=refine_max_iter)
         self.tolerance = tolerance
         self._solvers: dict[int, osqp.OSQP] = {}
-        self.iterations = 0  # of the last solve
+        self.iterations = 0  # of the last solve (with its refinement)
+        self.refinements = 0  # solves refined so far
 
     def solve(self, problem: QpProblem) -> PiecewiseBezier:
         """The optimal curve; raises :class:`MotionFailure` ('qp_infeasible', 'qp_not_solved', 'qp_inaccurate')
@@ -256,16 +261,35 @@ class SscSolver:
             self._solvers[problem.segments] = solver
         else:
             solver.update(Px=m.P.data, Ax=m.A.data, q=m.q, l=m.l, u=m.u)
-        result = solver.solve(raise_error=False)
-        self.iterations = int(result.info.iter)
-        if result.info.status_val != SOLVED:
-            reason = "qp_infeasible" if "infeasible" in result.info.status else "qp_not_solved"
-            raise MotionFailure(reason, result.info.status)
-        x = np.asarray(result.x)
-        ax = m.A @ x
-        off = max(float(np.abs(ax[:m.n_eq] - m.l[:m.n_eq]).max()), float(np.max(m.l - ax)), float(np.max(ax - m.u)))
-        if off > self.tolerance:
-            raise MotionFailure("qp_inaccurate", f"constraints off by {off:.1e}")
+        x = self._solved(solver)
+        off = _constraint_error(m, x)
+        if off > self.tolerance:  # polishing failed: refine the ADMM iterate, warm-started from it
+            self.refinements += 1
+            solver.update_settings(**self.refine)
+            try:
+                x = self._solved(solver, self.iterations)
+            finally:
+                solver.update_settings(eps_abs=self.settings["eps_abs"], eps_rel=self.settings["eps_rel"],
+                                       max_iter=self.settings["max_iter"])
+            off = _constraint_error(m, x)
+            if off > self.tolerance:
+                raise MotionFailure("qp_inaccurate", f"constraints off by {off:.1e}")
         ctrl = control_points(problem, x)
         ctrl[:, 0, :] += s0 / np.diff(problem.knots)[:, None]  # p = T·Σc·B and Σ B = 1
         return PiecewiseBezier(problem.knots, ctrl)
+
+    def _solved(self, solver: osqp.OSQP, iterations_before: int = 0) -> np.ndarray:
+        """The solver's solution; raises :class:`MotionFailure` unless osqp reports it solved."""
+        result = solver.solve(raise_error=False)
+        self.iterations = iterations_before + int(result.info.iter)
+        if result.info.status_val != SOLVED:
+            reason = "qp_infeasible" if "infeasible" in result.info.status else "qp_not_solved"
+            raise MotionFailure(reason, result.info.status)
+        return np.asarray(result.x)
+
+
+def _constraint_error(m: QpMatrices, x: np.ndarray) -> float:
+    """How far ``x`` is off the equalities and outside the bounds of ``m`` (0: it meets all of them)."""
+    ax = m.A @ x
+    return max(float(np.abs(ax[:m.n_eq] - m.l[:m.n_eq]).max()), float(np.max(m.l - ax)), float(np.max(ax - m.u)),
+               0.0)
