@@ -1,13 +1,28 @@
-"""Shared by the benchmarks: machine facts and atomic updates of bench/results.json."""
+"""Shared by the benchmarks: their command line, machine facts and locked, atomic updates of bench/results.json."""
 from __future__ import annotations
 
+import argparse
+import fcntl
 import json
 import os
 import platform
+import subprocess
+import tempfile
 import time
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
+
+
+def arguments(doc: str, script: str) -> argparse.Namespace:
+    """``--help`` (the benchmark's docstring) and ``--no-record`` (print the figures, leave results.json alone)."""
+    parser = argparse.ArgumentParser(
+        prog=f"python bench/{script}", description=doc, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f"examples:\n  PYTHONPATH=. python bench/{script}              # measure, record in results.json\n"
+               f"  PYTHONPATH=. python bench/{script} --no-record  # measure and print only")
+    parser.add_argument("--no-record", dest="record", action="store_false",
+                        help="print the figures instead of recording them in bench/results.json")
+    return parser.parse_args()
 
 
 def machine() -> dict:
@@ -23,14 +38,35 @@ def machine() -> dict:
     except OSError:
         pass
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numpy": numpy.__version__, "sumo": libsumo.getVersion()[1], "platform": platform.platform()}
+            "numpy": numpy.__version__, "sumo": libsumo.getVersion()[1], "platform": platform.platform(), **_code()}
 
 
-def record(name: str, figures: dict) -> None:
-    """Store ``figures`` under ``benchmarks.<name>`` with the machine they were measured on."""
-    data = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
-    data.setdefault("benchmarks", {})[name] = {"measured_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-                                               "machine": machine(), **figures}
-    tmp = RESULTS.with_name(".results.json.tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    os.replace(tmp, RESULTS)
+def _code() -> dict:
+    """The commit measured and whether the working tree had changes (figures from mixed versions show)."""
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=RESULTS.parent, capture_output=True, text=True,
+                              check=True).stdout.strip()
+    try:
+        return {"commit": git("rev-parse", "HEAD"), "dirty": bool(git("status", "--porcelain", "--untracked-files=no"))}
+    except (OSError, subprocess.CalledProcessError):
+        return {"commit": None, "dirty": None}
+
+
+def record(name: str, figures: dict, options: argparse.Namespace) -> None:
+    """Store ``figures`` under ``benchmarks.<name>`` with the machine and commit they were measured on (or print
+    them, with ``--no-record``). Benchmarks run at the same time each keep their entry: the read-modify-write holds
+    a lock, and the file is replaced by a complete, synced temporary file."""
+    entry = {"measured_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "machine": machine(), **figures}
+    if not options.record:
+        print(json.dumps({name: entry}, indent=2, sort_keys=True))
+        return
+    with open(RESULTS.with_name(".results.json.lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        data = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
+        data.setdefault("benchmarks", {})[name] = entry
+        with tempfile.NamedTemporaryFile("w", dir=RESULTS.parent, prefix=".results.", suffix=".tmp",
+                                         delete=False) as tmp:
+            tmp.write(json.dumps(data, indent=2, sort_keys=True) + "\n")
+            tmp.flush()
+            os.fsync(tmp.fileno())
+        os.replace(tmp.name, RESULTS)

@@ -1,7 +1,9 @@
 """Batch throughput with 1 and 2 local workers (runs per minute) and the speed-up.
 
 Eight runs of the shipped highway_sparse scenario (300 simulated seconds, co-simulation + audit each), as a
-user's batch runs them. Target (issue 8): a speed-up >= 1.8x on 2 cores.
+user's batch runs them; each configuration measured twice, alternating (1, 2, 1, 2 workers), best of the two (the
+first batch also paid for cold caches: measured once each, 1 worker first, the speed-up read 2.19x on 2 cores).
+Target (issue 8): a speed-up >= 1.8x on 2 cores.
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import record  # noqa: E402
+from _results import arguments, record  # noqa: E402
 
 from sumo_rss import load_scenario  # noqa: E402
 from sumo_rss.batch.executors import LocalExecutor  # noqa: E402
@@ -40,11 +42,15 @@ def runs_per_minute(workers: int) -> float:
 
 
 def main() -> None:
-    one, two = runs_per_minute(1), runs_per_minute(2)
+    options = arguments(__doc__, "batch_throughput.py")
+    rates = {1: [], 2: []}
+    for workers in (1, 2, 1, 2):
+        rates[workers].append(runs_per_minute(workers))
+    one, two = max(rates[1]), max(rates[2])
     figures = {"runs": RUNS, "scenario": "highway_sparse (300 s)", "runs_per_min_1_worker": one,
                "runs_per_min_2_workers": two, "speedup_2_workers": two / one,
                "target_speedup_1_8x": bool(two / one >= 1.8)}
-    record("batch_throughput", figures)
+    record("batch_throughput", figures, options)
     print(f"1 worker {one:.1f} runs/min, 2 workers {two:.1f} runs/min, speed-up {two / one:.2f}x")
 
 

@@ -18,7 +18,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import record  # noqa: E402
+from _results import arguments, record  # noqa: E402
 
 from sumo_rss import load_scenario  # noqa: E402
 from sumo_rss.planner.intention.belief import LearnedBelief  # noqa: E402
@@ -48,6 +48,7 @@ def busiest_branching_snapshot(belief: LearnedBelief) -> tuple[WorldSnapshot, np
 
 
 def main() -> None:
+    options = arguments(__doc__, "intention.py")
     network = RoadNetwork.from_file(REPO / "networks" / "intersection_priority" / "intersection_priority.net.xml")
     estimator = load_estimator()
     if estimator is None:
@@ -78,7 +79,7 @@ def main() -> None:
     figures = {"agents": AGENTS, "distinct_agents": int(branching.size), "agents_using_the_network": int(used.sum()),
                "per_cycle": stats(full), "network_only": stats(net_only)}
     figures["targets"] = {"per_cycle_20_agents_le_5ms": figures["per_cycle"]["median_ms"] <= 5.0}
-    record("intention", figures)
+    record("intention", figures, options)
     print(json.dumps(figures, indent=1))
 
 

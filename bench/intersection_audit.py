@@ -9,7 +9,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import record  # noqa: E402
+from _results import arguments, record  # noqa: E402
 
 from sumo_rss import load_scenario  # noqa: E402
 from sumo_rss.batch.runner import param_resolver  # noqa: E402
@@ -19,6 +19,7 @@ from sumo_rss.sim.session import Session  # noqa: E402
 
 
 def main() -> None:
+    options = arguments(__doc__, "intersection_audit.py")
     spec = load_scenario(REPO / "scenarios" / "intersection_tls.toml")
     snapshots = []
     started = time.perf_counter()
@@ -38,7 +39,7 @@ def main() -> None:
                "audit_ms_per_step": 1000 * audit_wall / len(snapshots), "pair_steps": auditor.pair_steps,
                "pair_steps_per_s": auditor.pair_steps / audit_wall, "episodes": len(result.episodes),
                "junction_episodes": int(junction)}
-    record("intersection_audit", figures)
+    record("intersection_audit", figures, options)
     print(f"intersection_tls: audit {figures['audit_only_rtf']:.0f}x real time alone, sim+audit "
           f"{figures['sim_plus_audit_rtf']:.0f}x, {figures['pair_steps_per_s'] / 1e6:.2f} M pair-steps/s, "
           f"{figures['audit_ms_per_step']:.2f} ms/step, {junction} junction episodes")

@@ -27,7 +27,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import record  # noqa: E402
+from _results import arguments, record  # noqa: E402
 
 from sumo_rss import load_scenario  # noqa: E402
 from sumo_rss.batch.runner import run_one  # noqa: E402
@@ -124,6 +124,7 @@ def closed_loop(controller: str, seed: int) -> dict:
 
 
 def main() -> None:
+    options = arguments(__doc__, "planner.py")
     network = RoadNetwork.from_file(REPO / "networks" / "highway" / "highway.net.xml")
     figures: dict = {"cycle": {str(n): cycle_times(network, n) for n in (10, 20, 40)}}
     comparison = {c: {str(seed): closed_loop(c, seed) for seed in SEEDS}
@@ -145,7 +146,7 @@ def main() -> None:
     figures["ego_mean_speed_ms"] = speed
     figures["ego_mean_speed_settled_ms"] = settled
     figures["ego_rms_jerk_lon"] = jerk
-    record("planner", figures)
+    record("planner", figures, options)
     print(json.dumps({"cycle": figures["cycle"], "ego_mean_speed_ms": speed, "ego_mean_speed_settled_ms": settled,
                       "ego_rms_jerk_lon": jerk, "targets": figures["targets"]}, indent=1))
 

@@ -89,7 +89,7 @@ class RoadLayer:
         c = settings
         self.first = int(np.floor(frame.s0 / c.s_res)) - c.s_cells
         last = int(np.ceil((frame.s0 + GRID_STEP * (frame.centre.shape[1] - 1)) / c.s_res)) + c.s_cells
-        # Edge e is the lower edge of cell first + e; the body of a centre in cell i spans the edges i − r .. i + 1 + r.
+        # Edge e is the lower edge of cell first + e; a body centred in cell i spans the edges i − r .. i + 1 + r.
         r = int(np.ceil(0.5 * ego_length / c.s_res - 1e-9))
         edges = c.s_res * (np.arange(self.first - r, last + r + 2) - 0.5)
         off = np.concatenate([np.zeros((1, c.d_cells), dtype=int),
