@@ -219,9 +219,13 @@ def test_param_resolver_uses_vtype_dynamics_for_krauss():
 
 
 def test_online_and_offline_audits_agree_at_a_signalised_junction(tmp_path):
-    """Offline, signal states come from the net's fixed-time program and routes from the route file."""
-    proc = _cli("run", str(SCENARIOS / "intersection_tls.toml"), "--duration", "120", "--out", str(tmp_path),
-                "--fcd", "--quiet")
+    """Offline, signal states come from the net's fixed-time program and routes from the route file (plain ad_rss:
+    standing cars not held, unlike the shipped scenario)."""
+    data = tomllib.loads((SCENARIOS / "intersection_tls.toml").read_text(encoding="utf-8"))
+    data["network"] = "intersection_tls"
+    data["rss"] = {**data.get("rss", {}), "hold_standing": False}
+    scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
+    proc = _cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "intersection_tls" / "0"
     proc = _cli("audit", str(run / "fcd.xml"), "--net", str(NETWORKS / "intersection_tls" / "intersection_tls.net.xml"),
@@ -255,7 +259,7 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
     run = tmp_path / "online" / "intersection_tls" / "0"
     proc = _cli("audit", str(run / "fcd.xml"), "--net", str(net), "--vtypes", str(run / "routes.rou.xml"),
                 "--collisions", str(run / "collisions.xml"), "--tls-states", str(states_file), "--out",
-                str(tmp_path / "offline"))
+                str(tmp_path / "offline"), "--hold-standing")  # as the scenario sets
     assert proc.returncode == 0, proc.stderr
     assert "intersection-priority" in (run / "episodes.csv").read_text()
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
