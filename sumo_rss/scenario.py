@@ -364,8 +364,9 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
         kind = one_of(f, ("veh_per_hour", "probability"))
         begin = f.number("begin_s", 0.0, min=0.0)
         end = f.number("end_s", min=0.0, optional=True)
-        if (duration if end is None else end) <= begin:
-            raise f.error("end_s", f"expected a number > begin_s ({begin:g})", duration if end is None else end)
+        last = duration if end is None else end  # [s] when the flow stops
+        if last <= begin:
+            raise f.error("end_s", f"expected a number > begin_s ({begin:g})", last)
         speed = f.raw("depart_speed", "desired")
         if not (speed in DEPART_SPEEDS or (isinstance(speed, (int, float)) and not isinstance(speed, bool)
                                            and 0 <= speed <= 100)):

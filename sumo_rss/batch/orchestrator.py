@@ -10,6 +10,7 @@ import os
 import shutil
 import sys
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import pandas as pd
@@ -29,7 +30,7 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
     """Run every task not finished yet; returns the batch summary (one row per task)."""
     out_dir = Path(out_dir)
     ids = [t.run_id for t in tasks]
-    twice = sorted({run_id for run_id in ids if ids.count(run_id) > 1})
+    twice = sorted(run_id for run_id, count in Counter(ids).items() if count > 1)
     if twice:
         sources = sorted({str(t.spec.source) for t in tasks if t.run_id in twice})
         raise SumoRssError(f"the batch names run {twice[0]} twice (the same scenario name, variant and seed, from "
