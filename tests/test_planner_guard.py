@@ -71,3 +71,32 @@ def test_an_owed_lateral_response_bounds_the_speed_towards_the_other_car(frame, 
     done = guard.apply(_ego_alone(2.0), 0, frame, planned, _owing_lateral(t_b, 0.5, other_is_left))
     assert (done.y + 5.25) / DT == pytest.approx(lateral_speed, abs=1e-6)
     assert guard.counts.lat_owed == int(lateral_speed < 1.0)
+
+
+@pytest.mark.parametrize("side, towards_ego, blocked", [
+    (-1.0, 0.3, False), (1.0, 0.3, False),  # lateral gap after the step 1.37 m > d_min 1.156 m
+    (-1.0, 0.6, True), (1.0, 0.6, True),  # 1.07 m < 1.156 m
+])
+def test_a_move_towards_a_car_beside_is_judged_with_each_cars_own_lateral_parameters(frame, side, towards_ego,
+                                                                                   blocked):
+    """mobileye_human: ρ 1 s for the ego, 2 s for the other car (a_lat 0.2, b_lat 0.8 m/s², μ 0.1 m). A car
+    right beside the ego (so longitudinally unsafe), 3.5 m − ``towards_ego`` to its ``side`` (−1 right, +1 left);
+    the plan moves the ego towards it at 0.3 m/s. d_min = the ego's reach (0.3 + 0.5)/2·1 + 0.5²/1.6 = 0.55625 +
+    the other's 0.2·2 + 0.4²/1.6 = 0.5 + μ 0.1 = 1.15625 m, on either side (with the two cars' parameters swapped
+    it read 1.531 m and blocked the 0.3 m case on the right)."""
+    z = np.zeros(2)
+    lane = 1 + int(side)
+    snapshot = WorldSnapshot(
+        time=20.0, ids=np.array(["ego", "car"]), x=np.array([300.0, 300.0]),
+        y=np.array([-5.25, -5.25 + side * (3.5 - towards_ego)]), heading=z, speed=np.array([20.0, 20.0]), accel=z,
+        lat_speed=z, length=np.array([4.5, 4.5]), width=np.array([1.8, 1.8]), lane_id=np.array(["hw0_1", f"hw0_{lane}"]),
+        edge_id=np.array(["hw0", "hw0"]), lane_index=np.array([1, lane]), lane_pos=np.array([300.0, 300.0]),
+        lat_pos=np.array([0.0, -side * towards_ego]), vclass=np.array(["ego", "background"]),
+        vtype=np.array(["car", "car"]), signals=np.zeros(2, int), route_index=np.zeros(2, int))
+    guard = ProperResponseGuard(ParamResolver("mobileye_human"), DT)
+    planned = TrajectoryState(300.0 + 20.0 * DT, -5.25 + side * 0.3 * DT, 0.0, 20.0, 0.0)
+    nothing_owed = OwedResponses(*(np.zeros(0, dtype=t) for t in (float, bool, bool, bool, bool, bool, float, object,
+                                                                   bool)))
+    done = guard.apply(snapshot, 0, frame, planned, nothing_owed)
+    assert (done.y + 5.25) / DT == pytest.approx(0.0 if blocked else side * 0.3, abs=1e-6)
+    assert guard.counts.lat_predictive == int(blocked)

@@ -135,14 +135,19 @@ class ProperResponseGuard:
 
         # 4. No lateral motion into a pair that is longitudinally unsafe.
         if abs(u_plan) > 1e-9:
-            u_now = float(snapshot.lat_speed[ego])
-            lat_min_now = formulas.lat_safe_distance(np.where(d[others] > d0, snapshot.lat_speed[near[others]],
-                                                              u_now),
-                                                     np.where(d[others] > d0, u_now,
-                                                              snapshot.lat_speed[near[others]]), p_o, p_e)
-            u_towards = np.where(d[others] > d0, u_plan, -u_plan)
-            lat_min_next = formulas.lat_safe_distance(np.where(d[others] > d0, 0.0, u_plan),
-                                                      np.where(d[others] > d0, u_plan, 0.0), p_o, p_e)
+            other_left = d[others] > d0
+            u_towards = np.where(other_left, u_plan, -u_plan)
+
+            def lat_min(u_other: np.ndarray, u_ego: float) -> np.ndarray:
+                """Safe lateral distances [m] for the others' and the ego's own lateral speeds (+ = left), each
+                car's reach with its own parameters (rss.md §2)."""
+                return formulas.combine_lateral(
+                    formulas.lateral_reach(np.where(other_left, -u_other, u_other), p_o),
+                    formulas.lateral_reach(np.where(other_left, u_ego, -u_ego), p_e),
+                    p_o.lat_fluctuation_margin, p_e.lat_fluctuation_margin)
+
+            lat_min_now = lat_min(snapshot.lat_speed[near[others]], float(snapshot.lat_speed[ego]))
+            lat_min_next = lat_min(np.zeros(others.size), u_plan)
             lat_gap_next = lat_gap - np.maximum(u_towards, 0.0) * dt
             gap = np.abs(ds) - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]])
             lon_min = np.where(ds > 0.0, formulas.lon_safe_distance_same_dir(v1, v_o, p_e, p_o),
