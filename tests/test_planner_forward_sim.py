@@ -461,3 +461,38 @@ def test_a_stop_line_is_approached_with_the_idm_not_held_at_an_rss_distance(high
     sim = simulate(frame, vehicles, rollouts, (1.0,) * 10, SimSettings(), RssParams(), p, ego_stop_s=stop_s)
     front = sim.s[0, :, 0] + 2.25
     assert front.max() <= stop_s and front[-1] > stop_s - 5.0 and sim.speed[0, -1, 0] < 1.0
+
+
+def test_each_layer_ends_with_the_leader_on_the_lane_that_layer_tracked(highway):
+    """The ego at 20 m/s in the middle lane with nothing ahead; a 12 m/s car 150 m ahead in the left lane. KKKKL
+    changes left only in its last layer, so at the end of layers 1-4 it has no leader, as KKKKK (the sample that
+    ends a layer is also the first of the next: it read the next layer's lane, the left car, 113.5 m ahead)."""
+    _, frame = highway
+    vehicles = _vehicles([100.0, 250.0], [0.0, 3.5], [20.0, 12.0], chain=[CURRENT, LEFT])
+    rollouts = Rollouts(np.array([[CURRENT] * 5, [CURRENT] * 4 + [LEFT]]), np.full(2, 20.0), np.ones(2),
+                        np.zeros(2, dtype=bool), 4.2, np.array([[CURRENT, LEFT]] * 2), np.array([0.0, 12.0]))
+    p = RssParams()
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))
+    ends = sim.layer_end
+    assert np.isinf(sim.ego_lead_gap[:, ends[:4]]).all()
+    assert np.isfinite(sim.ego_lead_gap[1, ends[4]]) and np.isinf(sim.ego_lead_gap[0, ends[4]])
+    assert sim.ego_lead_is_car[1, ends[4]]
+    # Within the last layer KKKKL looks at the left lane from its first sample on.
+    assert np.isfinite(sim.ego_lead_gap[1, ends[3] + 1])
+
+
+def test_a_stop_line_ahead_is_not_read_as_a_car_by_the_leader_cost(highway):
+    """A stop line 100 m ahead of an ego at 15 m/s and no car: the simulation approaches it with the plain IDM, so
+    the leader cost reads the gap as it is (with the RSS-following correction it read 55.5 m)."""
+    _, frame = highway
+    vehicles = _vehicles([100.0], [0.0], [15.0])
+    p = RssParams()
+    sim = simulate(frame, vehicles, _keep(1, 1), (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p]),
+                   ego_stop_s=100.0 + 2.25 + 100.0)
+    assert sim.ego_lead_gap[0, 0] == pytest.approx(100.0) and not sim.ego_lead_is_car[0, 0]
+    agents = RssParamArrays.stack([p])
+    read = leader_gap_for_cost(sim.ego_lead_gap[:, :1], sim.speed[:, :1, 0], sim.ego_lead_speed[:, :1], p, agents,
+                               1.0, is_car=sim.ego_lead_is_car[:, :1])
+    assert read[0, 0] == pytest.approx(100.0)
+    assert leader_gap_for_cost(np.array([100.0]), np.array([15.0]), np.array([0.0]), p, agents, 1.0)[0] < 60.0
+

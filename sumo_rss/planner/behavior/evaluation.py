@@ -128,7 +128,7 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
                               0.0))
     v_lead = sim.ego_lead_speed[:, ends]
     gap = leader_gap_for_cost(sim.ego_lead_gap[:, ends], v, v_lead, rss_ego, rss_agents, rss_following_headway,
-                              sim.ego_lead_held_gap[:, ends])
+                              sim.ego_lead_held_gap[:, ends], sim.ego_lead_is_car[:, ends])
     residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
     blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
     c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
@@ -153,16 +153,18 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
 
 
 def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_ego: Any, rss_agents: Any,
-                        rss_following_headway: float | None, held_gap: Any = np.inf) -> np.ndarray:
+                        rss_following_headway: float | None, held_gap: Any = np.inf, is_car: Any = True
+                        ) -> np.ndarray:
     """The ego's bumper gap [m] to its leader as the leader cost reads it (inf: no leader). With RSS following the
     ego's IDM keeps the RSS safe distance where it exceeds the headway v·T, so the ego follows ~100 m back under
     ad_rss where EPSILON's IDM follows 20-30 m back, and the cost's 120 m range would rate a leader that holds
     the ego to its speed as hardly in the way (residual ratio at its 0.4 floor). The cost therefore reads the gap
     as EPSILON's IDM would: less the excess over v·T of the distance the simulation keeps
-    (:func:`following_distance`, with the leader's ``held_gap`` [m])."""
+    (:func:`following_distance`, with the leader's ``held_gap`` [m]). Only behind a car (``is_car``): the
+    simulation approaches a lane end or a stop line with the plain IDM, so that gap is read as it is."""
     if rss_following_headway is None or rss_agents.lon_brake_max.size == 0:
         return gap
-    led = np.isfinite(gap)
+    led = np.isfinite(gap) & is_car
     following = following_distance(v, np.where(led, v_lead, v), rss_ego, hardest_braking(rss_agents), held_gap)
     return gap - np.where(led, np.maximum(following - rss_following_headway * v, 0.0), 0.0)
 

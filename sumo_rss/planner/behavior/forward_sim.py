@@ -108,9 +108,12 @@ class SimResult:
     ego_accel: np.ndarray  # [R, T+1] the ego's acceleration during the step before each sample [m/s²]
     ego_curvature: np.ndarray  # [R, T+1] [1/m]
     valid: np.ndarray  # [R] no collision of the ego with anyone
-    ego_lead_gap: np.ndarray  # [R, T+1] ego's leader on its tracked lane: bumper gap [m] (inf: none)
-    ego_lead_speed: np.ndarray  # [R, T+1]
+    # The ego's leader on its tracked lane (at a layer's last sample: on the lane that layer tracked), a car or a
+    # standing obstacle (a lane end, a stop line):
+    ego_lead_gap: np.ndarray  # [R, T+1] bumper gap [m] (inf: none)
+    ego_lead_speed: np.ndarray  # [R, T+1] [m/s]
     ego_lead_held_gap: np.ndarray  # [R, T+1] that leader's ``cut_in_gap`` [m] (inf: none; see simulate)
+    ego_lead_is_car: np.ndarray  # [R, T+1] bool: the leader is a car (not a lane end or a stop line)
     barrier_steps: np.ndarray  # [R] steps the virtual barrier held the ego back
     chain: np.ndarray  # [R, T+1, n] int: the lane chain each vehicle is in at each sample
 
@@ -225,7 +228,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     # Per layer: the prefix of every rollout, and the samples of its prefixes: [samples, 5, G, n] (s, d, heading,
-    # speed, chain) and [samples, 5, G] of the ego (acceleration, curvature, leader gap, speed and held gap).
+    # speed, chain) and [samples, 6, G] of the ego (acceleration, curvature, leader gap, speed, held gap and
+    # whether the leader is a car).
     layers_recorded: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     first_sample = np.concatenate([[0], layer_end[:-1]])
     samples = np.diff(np.append(first_sample, n_steps + 1))
@@ -254,7 +258,11 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
             idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
             layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)),
-                                    np.full((samples[layer], 5, G), np.inf)))
+                                    np.full((samples[layer], 6, G), np.inf)))
+            # This step is also the last sample of the layer before: the ego's leader there is the one on the lane
+            # that layer tracked (a third look of the leader search where it differs).
+            ending = rollouts.ego_chain[first, layer - 1] if layer > 0 else tracked[:, 0]
+            ending = ending if np.any(ending != tracked[:, 0]) else None
         s, d, v = state.x, state.y, state.speed
         if branching:
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
@@ -266,22 +274,30 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         now_chain = frame.chain_of_offsets(offset, s)
         if branching:
             gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, length, width, rss_agents)
-        # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both).
+        # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both), and at a
+        # layer's first step for the ego on the lane the layer before tracked.
         looks = np.array([tracked, now_chain])
+        if branching and ending is not None:
+            looks = np.concatenate([looks, looks[:1]])
+            looks[2, :, 0] = ending
         ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
         free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
                                                        (settings.agent_radius, settings.ego_radius), ego_band)
-        (gap_t, gap_c), (v_t, v_c) = _lane_end(frame, looks, s, length, free_gaps, free_speeds,
-                                               settings.lane_end_margin)
+        lead_gaps, lead_speeds = _lane_end(frame, looks, s, length, free_gaps, free_speeds, settings.lane_end_margin)
         if np.isfinite(ego_stop_s):
-            gap_t[:, 0], v_t[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_t[:, 0], v_t[:, 0])
-            gap_c[:, 0], v_c[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_c[:, 0], v_c[:, 0])
+            lead_gaps[:, :, 0], lead_speeds[:, :, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], lead_gaps[:, :, 0],
+                                                                  lead_speeds[:, :, 0])
+        (gap_t, gap_c), (v_t, v_c) = lead_gaps[:2], lead_speeds[:2]
+        recorded = looks.shape[0] - 1 if branching and ending is not None else 0  # the look the sample records
+        lead_is_car = lead_gaps[recorded, :, 0] == free_gaps[recorded, :, 0]
         _, vehicle_samples, ego_samples = layers_recorded[-1]
         sample = k - first_sample[layer]
         vehicle_samples[sample] = (s, d, state.heading, v, now_chain)
-        ego_samples[sample, :4] = (state.accel[:, 0], state.curvature[:, 0], gap_t[:, 0], v_t[:, 0])
+        ego_samples[sample, :4] = (state.accel[:, 0], state.curvature[:, 0], lead_gaps[recorded, :, 0],
+                                   lead_speeds[recorded, :, 0])
+        ego_samples[sample, 5] = lead_is_car
         if holding:  # the leader's held gap, unless a lane end or a stop line took its place
-            ego_samples[sample, 4] = np.where(gap_t[:, 0] == free_gaps[0, :, 0], held_gap[leader[0, :, 0]], np.inf)
+            ego_samples[sample, 4] = np.where(lead_is_car, held_gap[leader[recorded, :, 0]], np.inf)
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
@@ -373,9 +389,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     vehicle_samples = np.concatenate([samples[:, :, inverse] for inverse, samples, _ in layers_recorded])
     ego_samples = np.concatenate([samples[:, :, inverse] for inverse, _, samples in layers_recorded])
     s, d, heading, speed, chain = vehicle_samples.transpose(1, 2, 0, 3)
-    ego_accel, ego_curvature, lead_gap, lead_speed, lead_held_gap = ego_samples.transpose(1, 2, 0)
+    ego_accel, ego_curvature, lead_gap, lead_speed, lead_held_gap, lead_is_car = ego_samples.transpose(1, 2, 0)
     return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid[inverse], lead_gap, lead_speed,
-                     lead_held_gap, barrier_steps[inverse], chain.astype(np.intp))
+                     lead_held_gap, lead_is_car == 1.0, barrier_steps[inverse], chain.astype(np.intp))
 
 
 def leaders_ahead(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.ndarray,
