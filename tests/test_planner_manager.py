@@ -1,10 +1,15 @@
 """EUDM manager (epsilon.md §2.7): lane-change proposals, context timing and expiry."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
+from conftest import NETWORKS
 from sumo_rss.planner.behavior.dcp_tree import Lat, Lon, Policy
 from sumo_rss.planner.behavior.manager import Manager, ManagerSettings
+from sumo_rss.planner.lanes import CURRENT, lane_chains, lanes_consistent_with
+from sumo_rss.road.network import RoadNetwork
 
 LEFT_NOW = Policy(Lon.MAINTAIN, (Lat.LEFT,) * 5, (1.0,) * 5)
 LANE, START_LANES = 3, frozenset({3})
@@ -62,3 +67,24 @@ def test_the_speed_window_tops_out_at_1_2_times_the_desired_speed(desired, speed
     for k in range(10):
         manager.propose(LEFT_NOW, 10.0 + 0.1 * k, speed, LANE, START_LANES, None)
     assert (manager.context is not None) == proposed
+
+
+def test_a_context_completes_on_a_lane_change_not_on_driving_on_past_the_planning_chain():
+    """merge net: the planning chain from mw_in_1 reaches only mw_merge_2 (250 m past mw_in_1). Driving straight
+    on into :m2_0_1 and mw_out_1 is no lane change (epsilon.md §2.7: the lanes "consistent" with the start are
+    found along its successors, up to 20); moving over to mw_merge_1 is."""
+    net = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    ids = list(net.lane_ids)
+    chain = lane_chains(net, ids.index("mw_in_1"), net.edge_indices(["mw_in", "mw_merge", "mw_out"]))
+    current = chain.lanes[chain.chain_of[CURRENT]]
+    assert [ids[k] for k in current] == ["mw_in_1", ":m1_1_1", "mw_merge_2"]
+    consistent = lanes_consistent_with(net, current)
+    assert {ids[k] for k in consistent} == {"mw_in_1", ":m1_1_1", "mw_merge_2", ":m2_0_1", "mw_out_1"}
+    manager = Manager(ManagerSettings(), layer_duration=1.0)
+    _trigger(manager, None)
+    manager.context = replace(manager.context, start_lanes=consistent)
+    for lane in ("mw_merge_2", ":m2_0_1", "mw_out_1"):
+        manager.update_context(14.0, ids.index(lane))
+    assert manager.context is not None and manager.lane_changes_completed == 0
+    manager.update_context(14.0, ids.index("mw_merge_1"))
+    assert manager.context is None and manager.lane_changes_completed == 1

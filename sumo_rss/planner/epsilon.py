@@ -37,7 +37,7 @@ from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import stop_line
-from .lanes import CURRENT, LEFT, RIGHT, lane_chains
+from .lanes import CURRENT, LEFT, RIGHT, lane_chains, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
 from .road_frame import RoadFrame
@@ -176,7 +176,8 @@ class EpsilonPlanner:
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
         chosen = self.manager.select(policies, ev.cost[:n_real], ev.valid[:n_real], now)
         self.manager.propose(policies[original] if original is not None else None, now, v_ego, lane,
-                             frozenset(frame.chains.lanes[frame.chains.chain_of[CURRENT]]), mandatory)
+                             lanes_consistent_with(self.network, frame.chains.lanes[frame.chains.chain_of[CURRENT]]),
+                             mandatory)
         backup = chosen is None
         winner = n_real if backup else chosen
         self.manager.commit(everything[winner], now)

@@ -12,6 +12,7 @@ from ..road.network import RoadNetwork
 
 CURVE_LAT_ACCEL = 1.2  # [m/s²] lateral acceleration limit of the reference speed (epsilon.md §2.7)
 RIGHT, CURRENT, LEFT = 0, 1, 2  # chain order
+CONSISTENT_LANES = 20  # lanes searched along the successors for a lane-change context (epsilon.md §2.7)
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,6 +110,20 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         curve_kappa.append(kappa)
     return LaneChains(shapes, chain_of, tuple(chains), np.array(start_s), tuple(lane_start), tuple(lane_speed),
                       tuple(curve_s), tuple(curve_kappa), np.array(widths), np.array(dead_end, dtype=bool))
+
+
+def lanes_consistent_with(network: RoadNetwork, chain: tuple[int, ...] | list[int], limit: int = CONSISTENT_LANES
+                          ) -> frozenset[int]:
+    """The lanes a car that started on ``chain``'s first lane is still "on" without having changed lanes
+    (epsilon.md §2.7): the chain and a breadth-first search over the successors of its first lane, up to
+    ``limit`` lanes. A lane-change context completes once the ego's lane is none of these."""
+    found, queue = [chain[0]], [chain[0]]
+    while queue and len(found) < limit:
+        for nxt in network.lane_successors[queue.pop(0)]:
+            if nxt not in found and len(found) < limit:
+                found.append(nxt)
+                queue.append(nxt)
+    return frozenset(found) | frozenset(chain)
 
 
 def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:
