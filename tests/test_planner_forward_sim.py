@@ -496,3 +496,10 @@ def test_a_stop_line_ahead_is_not_read_as_a_car_by_the_leader_cost(highway):
     assert read[0, 0] == pytest.approx(100.0)
     assert leader_gap_for_cost(np.array([100.0]), np.array([15.0]), np.array([0.0]), p, agents, 1.0)[0] < 60.0
 
+
+def test_the_mpdm_baseline_simulates_4_s_in_0_4_s_steps():
+    """epsilon.md §8: MPDM's horizon is 4.0 s at 0.4 s steps (1 s layers at 0.4 s were cut into 0.333 s steps)."""
+    config = PlannerConfig.mpdm(25.0)
+    t, ends = step_times((config.layer_duration,) * config.layers, config.sim_step)
+    np.testing.assert_allclose(np.diff(t), 0.4)
+    assert t[-1] == pytest.approx(4.0) and ends[-1] == 10

@@ -72,8 +72,10 @@ class PlannerConfig:
 
     @classmethod
     def mpdm(cls, desired_speed: float) -> PlannerConfig:
-        """The MPDM baseline: 3 lateral policies at constant speed command, one scenario, 4 s at 0.4 s."""
-        return cls(mode="mpdm", desired_speed=desired_speed, layers=4, sim_step=0.4, scenarios_k=1,
+        """The MPDM baseline: 3 lateral policies at constant speed command, one scenario, 4 s at 0.4 s (ten 0.4 s
+        layers, so that each is one step: the layers are cut into equal steps of at most ``sim_step``)."""
+        return cls(mode="mpdm", desired_speed=desired_speed, layers=10, layer_duration=0.4, sim_step=0.4,
+                   scenarios_k=1,
                    manager=ManagerSettings(consistency_frames=2, min_operation_delay=0.0),
                    motion=MotionSettings(enabled=False), sim=SimSettings(rss_following=False))
 
