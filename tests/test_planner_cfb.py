@@ -1,6 +1,8 @@
 """CFB scenario branching on crafted intention probabilities (columns: keep, left, right)."""
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -47,3 +49,42 @@ def test_rule_based_belief_matches_the_one_hot_rule_far_from_its_thresholds():
     mid = intention_probabilities([1.2], [0.35], [True], [True])
     assert mid[0, 0] == pytest.approx(mid[0, 1], abs=0.02)
     assert intention_probabilities([0.4], [0.35], [True], [True])[0, 1] == pytest.approx(0.25)
+
+
+def _enumerated(probabilities, branched, k):
+    """Every combination of the branched agents, ranked by probability then combination order (the reference)."""
+    idx = np.flatnonzero(branched)
+    combos = np.array(list(itertools.product(range(3), repeat=idx.size)), dtype=int)
+    p = np.prod(probabilities[idx[None, :], combos], axis=1)
+    order = [c for c in np.argsort(-p, kind="stable") if p[c] > 0.0][:k]
+    return combos[order], p[order] / p[order].sum()
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_top_k_agrees_with_ranking_every_combination_ties_included(seed):
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 8))
+    # Probabilities on a coarse grid (ties between combinations are common), some zero.
+    raw = rng.integers(0, 4, size=(m + 2, 3)).astype(float)
+    raw[raw.sum(axis=1) == 0, 0] = 1.0
+    probabilities = raw / raw.sum(axis=1, keepdims=True)
+    branched = np.zeros(m + 2, dtype=bool)
+    branched[rng.choice(m + 2, size=m, replace=False)] = True
+    k = int(rng.integers(1, 7))
+    scenarios = branch_scenarios(probabilities, branched, k)
+    combos, weights = _enumerated(probabilities, branched, k)
+    assert scenarios.intentions[:, branched].tolist() == combos.tolist()
+    np.testing.assert_allclose(scenarios.weights, weights, rtol=1e-12)
+
+
+def test_many_branched_agents_keep_the_top_k_without_enumerating_3_to_the_m():
+    """40 uncertain agents (3^40 combinations): the best is every agent's MAP intention, the next ones swap the
+    agent with the closest second choice."""
+    probabilities = np.tile([0.5, 0.3, 0.2], (40, 1))
+    probabilities[7] = [0.45, 0.44, 0.11]
+    scenarios = branch_scenarios(probabilities, np.ones(40, dtype=bool), k=3)
+    assert scenarios.intentions[0].tolist() == [0] * 40
+    second = [0] * 40
+    second[7] = 1
+    assert scenarios.intentions[1].tolist() == second
+    np.testing.assert_allclose(scenarios.weights[:2] / scenarios.weights[0], [1.0, 0.44 / 0.45])

@@ -7,7 +7,6 @@ renormalised to sum to 1; a policy's cost is the weighted sum of its costs in th
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +33,10 @@ def branch_scenarios(probabilities: np.ndarray, branched: np.ndarray, k: int = 4
     """The top-``k`` intention combinations of the ``branched`` agents (others at their MAP intention).
 
     Ties are broken by the combination's order (agents in order, intentions in INTENTIONS order), so the result is
-    deterministic. With no branched agent there is one scenario of weight 1.
+    deterministic. With no branched agent there is one scenario of weight 1. The combinations are built one agent
+    at a time, keeping the best ``k`` (O(m·k) for m branched agents, not 3^m): a combination among the best k
+    has its first agents' part among the best k of those parts, since any better part would lead with the same
+    remaining intentions to a better combination.
     """
     probabilities = np.asarray(probabilities, dtype=float)
     n = probabilities.shape[0]
@@ -42,11 +44,15 @@ def branch_scenarios(probabilities: np.ndarray, branched: np.ndarray, k: int = 4
     idx = np.flatnonzero(branched)
     if idx.size == 0:
         return Scenarios(map_intention[None, :].copy(), np.ones(1))
-    combos = np.array(list(itertools.product(range(len(INTENTIONS)), repeat=idx.size)), dtype=int)
-    combo_p = np.prod(probabilities[idx[None, :], combos], axis=1)
-    keep = combo_p > 0.0
-    combos, combo_p = combos[keep], combo_p[keep]
-    order = np.argsort(-combo_p, kind="stable")[:k]
+    choices = len(INTENTIONS)
+    combos, combo_p = np.zeros((1, 0), dtype=int), np.ones(1)
+    for agent in idx:  # combos stay in combination order: each is followed by its own extensions in turn
+        combos = np.concatenate([np.repeat(combos, choices, axis=0),
+                                 np.tile(np.arange(choices), len(combos))[:, None]], axis=1)
+        combo_p = np.repeat(combo_p, choices) * np.tile(probabilities[agent], len(combo_p))
+        best = np.sort(np.flatnonzero(combo_p > 0.0)[np.argsort(-combo_p[combo_p > 0.0], kind="stable")[:k]])
+        combos, combo_p = combos[best], combo_p[best]
+    order = np.argsort(-combo_p, kind="stable")
     intentions = np.repeat(map_intention[None, :], len(order), axis=0)
     intentions[:, idx] = combos[order]
     weights = combo_p[order] / combo_p[order].sum()
