@@ -3,6 +3,7 @@ the same results, and the report plots exactly what the CSVs say."""
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -15,9 +16,10 @@ import pytest
 from conftest import REPO, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
-from sumo_rss.batch.orchestrator import run_batch
+from sumo_rss.batch.orchestrator import _BatchLock, run_batch
 from sumo_rss.batch.runner import run_one
 from sumo_rss.batch.spec import BatchSpec, Task, load_batch
+from sumo_rss.errors import SumoRssError
 from sumo_rss.report.html import write_report
 from sumo_rss.report.summary import read_batch_csv, responsibility_category, responsibility_table
 
@@ -261,3 +263,57 @@ def test_a_batch_script_without_a_main_guard_fails_with_a_message_that_says_so(t
     status = [line for line in done.stdout.splitlines() if line.startswith("STATUS")]
     assert status and status[0].startswith("STATUS failed"), done.stdout + done.stderr
     assert 'if __name__ == "__main__":' in status[0] and "SUMO crashed" not in status[0]
+
+
+def test_the_batch_lock_is_exclusive_and_a_left_over_lock_file_is_taken_over(tmp_path):
+    """The lock is an flock: held, a second batch in the folder is refused with the holder's process id; a lock
+    file left by a killed batch (any content: its process is gone, and the kernel dropped its lock) is no
+    obstacle, and the lock file is gone after the batch."""
+    (tmp_path / ".batch.lock").write_text("garbage\n")
+    with _BatchLock(tmp_path):
+        assert (tmp_path / ".batch.lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(SumoRssError, match=rf"another batch \(process {os.getpid()}\) is running"):
+            _BatchLock(tmp_path).__enter__()
+    assert not (tmp_path / ".batch.lock").exists()
+    with _BatchLock(tmp_path):
+        pass
+
+
+def test_a_finished_run_with_a_damaged_summary_is_run_again(two_scenarios, tmp_path):
+    tasks = load_batch(two_scenarios / "batch.toml").tasks()[:1]
+    out = tmp_path / "out"
+    run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
+    summary = out / tasks[0].run_id / "summary.json"
+    summary.write_text('{"run_id": ')
+    with pytest.warns(UserWarning, match="other scenario parameters or are damaged"):
+        rows = run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
+    assert rows.status.tolist() == ["ok"] and json.loads(summary.read_text())["status"] == "ok"
+
+
+def _kill_itself() -> None:
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_worker_killed_while_starting_is_not_blamed_on_a_missing_main_guard(two_scenarios, tmp_path):
+    task = load_batch(two_scenarios / "batch.toml").tasks()[0]
+    proc = multiprocessing.get_context("spawn").Process(target=_kill_itself)
+    proc.start()
+    proc.join()
+    outcome = LocalExecutor._outcome(proc, task, tmp_path, started=False)
+    assert outcome.status == "failed"
+    assert outcome.error.startswith("worker process died (killed by signal 9) while starting") and \
+        "__main__" not in outcome.error
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, r"no batch_summary\.csv; run 'sumo-rss batch' first"),
+    ("", r"batch_summary\.csv: not a CSV file as 'sumo-rss batch' writes it"),
+    ("run_id,scenario,variant,seed\nhw/0,hw,,0\n", r"batch_summary\.csv: expected the columns run_id, scenario, "
+                                                 r"variant, seed, status .*missing status"),
+    ("run_id,scenario,variant,seed,status\n", r"batch_summary\.csv: lists no runs"),
+])
+def test_report_on_a_damaged_batch_folder_names_the_file_and_what_is_wrong(tmp_path, content, message):
+    if content is not None:
+        (tmp_path / "batch_summary.csv").write_text(content)
+    with pytest.raises(SumoRssError, match=message):
+        write_report(tmp_path)

@@ -111,9 +111,12 @@ class LocalExecutor:
         if (failure_directory(out_dir, task) / FAILED_FILE).is_file():
             return Outcome(task.run_id, "failed",
                            json.loads((failure_directory(out_dir, task) / FAILED_FILE).read_text())["error"])
-        how = f"killed by signal {-proc.exitcode}" if proc.exitcode and proc.exitcode < 0 else \
-            f"exit code {proc.exitcode}"
-        if not started:  # it died importing the main module again, as spawned processes do
+        killed = proc.exitcode is not None and proc.exitcode < 0
+        how = f"killed by signal {-proc.exitcode}" if killed else f"exit code {proc.exitcode}"
+        if not started and killed:  # killed from outside (or out of memory) while importing
+            return record_failure(out_dir, task, f"worker process died ({how}) while starting, before it began the "
+                                  "run (out of memory?)", "")
+        if not started:  # it failed importing the main module again, as spawned processes do
             return record_failure(out_dir, task, f"worker process died ({how}) before it started the run: a script "
                                   "that runs batches must start them under `if __name__ == \"__main__\":` (each "
                                   "worker is a spawned process that imports the script again); see the worker's "
@@ -126,21 +129,22 @@ class RayExecutor:
     fresh local instance). The output folder must be shared by all nodes."""
 
     def __init__(self, address: str):
+        """Connects at once, so that a batch without a cluster fails before it creates its folder."""
         try:
-            import ray  # noqa: F401
+            import ray
         except ImportError:
             raise SumoRssError("--ray-address needs Ray: pip install 'sumo-rss[ray]'") from None
         self.address = address
+        if not ray.is_initialized():
+            try:
+                ray.init(address=None if address == "local" else address, log_to_driver=False)
+            except ConnectionError as exc:  # no cluster at that address: a one-line error, not Ray's traceback
+                raise SumoRssError(f"--ray-address {address}: no Ray cluster to connect to ({exc}); start one "
+                                   "with 'ray start --head', or use 'local'") from None
 
     def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
         import ray
 
-        if not ray.is_initialized():
-            try:
-                ray.init(address=None if self.address == "local" else self.address, log_to_driver=False)
-            except ConnectionError as exc:  # no cluster at that address: a one-line error, not Ray's traceback
-                raise SumoRssError(f"--ray-address {self.address}: no Ray cluster to connect to ({exc}); start one "
-                                   "with 'ray start --head', or use 'local'") from None
         remote = ray.remote(num_cpus=1, max_retries=0)(execute)
         futures = {remote.remote(task, str(out_dir)): task for task in tasks}
         try:

@@ -1,10 +1,12 @@
 """Run a batch: skip finished runs, execute the rest (locally or on Ray), show progress, write the outputs.
 
-A batch folder is locked while a batch runs in it (``.batch.lock`` with the process id); a lock left by a dead
-process is taken over, together with the half-written ``*.partial`` run folders that process left behind.
+A batch folder is locked while a batch runs in it (an flock on ``.batch.lock``, which holds the process id); the
+kernel drops the lock of a process that dies, and the next batch removes the half-written ``*.partial`` run folders
+that process left behind.
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import shutil
@@ -12,6 +14,7 @@ import sys
 import warnings
 from collections import Counter
 from pathlib import Path
+from typing import IO
 
 import pandas as pd
 from tqdm import tqdm
@@ -42,8 +45,8 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
         todo = [t for t in tasks if not _finished(out_dir, t)]
         stale = [run_directory(out_dir, t) for t in todo if (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
         if stale:
-            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters; "
-                          "running them again", stacklevel=2)
+            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters or "
+                          "are damaged; running them again", stacklevel=2)
             for folder in stale:  # gone first: a rerun that fails must not leave the old results standing for it
                 shutil.rmtree(folder)
         failed = 0
@@ -65,46 +68,62 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
 
 def _finished(out_dir: Path, task: Task) -> bool:
     """Whether ``task``'s run folder holds a complete run of the same resolved scenario (the parameter hash of its
-    manifest matches): a scenario changed since is run again, not reported from the old run."""
+    manifest matches): a scenario changed since is run again, not reported from the old run; so is a run whose
+    summary or manifest cannot be read (damaged)."""
     folder = run_directory(out_dir, task)
     if not (folder / SUMMARY_FILE).is_file():
         return False
     try:
         manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
+        json.loads((folder / SUMMARY_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
     return manifest.get("parameter_hash") == task.parameter_hash()
 
 
 class _BatchLock:
+    """An exclusive lock (flock) on ``<out>/.batch.lock``, which holds the process id for the error message. The
+    kernel releases it when its process dies, so a lock file left behind by a killed batch is simply locked anew."""
+
     def __init__(self, out_dir: Path):
         self.path = out_dir / LOCK_FILE
         self.out_dir = out_dir
+        self._file: IO[str] | None = None
 
     def __enter__(self) -> _BatchLock:
-        if self.path.is_file():
-            holder = int(self.path.read_text().strip() or 0)
-            if holder and holder != os.getpid() and _alive(holder):
-                raise SumoRssError(f"{self.out_dir}: another batch (process {holder}) is running in this folder")
+        while True:
+            fh = open(self.path, "a+", encoding="utf-8")
+            try:
+                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                fh.seek(0)
+                holder = fh.read().strip() or "?"
+                fh.close()
+                raise SumoRssError(f"{self.out_dir}: another batch (process {holder}) is running in this "
+                                   "folder") from None
+            try:
+                same = os.stat(self.path).st_ino == os.fstat(fh.fileno()).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            fh.close()  # locked a file its holder removed on release meanwhile: lock the one there now
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        self._file = fh
         _remove_partial_runs(self.out_dir)  # left by a batch that died mid-run
-        self.path.write_text(f"{os.getpid()}\n")
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.path.unlink(missing_ok=True)
+        self.path.unlink(missing_ok=True)  # removed while still locked, so a waiting batch re-checks (above)
+        if self._file is not None:
+            self._file.close()
+            self._file = None
 
 
 def _remove_partial_runs(out_dir: Path) -> None:
     """Remove half-written run folders; only safe while holding the batch lock."""
     for partial in out_dir.glob("**/.*.partial"):
         shutil.rmtree(partial, ignore_errors=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

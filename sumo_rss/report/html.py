@@ -15,14 +15,25 @@ from .summary import read_batch_csv, responsibility_table, run_label, violation_
 
 
 FIGURES = ("responsibility", "violations", "pair_timeline", "ego_speed")
+SUMMARY_COLUMNS_USED = ("run_id", "scenario", "variant", "seed", "status")  # of batch_summary.csv
 
 
 def write_report(batch_dir: Path) -> Path:
     """Write the PNGs and report.html of a batch folder; returns the HTML path."""
     batch_dir = Path(batch_dir)
-    summary = read_batch_csv(batch_dir, "batch_summary")
-    if summary.empty:
+    path = batch_dir / "batch_summary.csv"
+    if not path.is_file():
         raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
+    try:
+        summary = read_batch_csv(batch_dir, "batch_summary")
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss batch' writes it ({exc})") from None
+    missing = [c for c in SUMMARY_COLUMNS_USED if c not in summary.columns]
+    if missing:
+        raise SumoRssError(f"{path}: expected the columns {', '.join(SUMMARY_COLUMNS_USED)} (as 'sumo-rss batch' "
+                           f"writes them), missing {', '.join(missing)}")
+    if summary.empty:
+        raise SumoRssError(f"{path}: lists no runs")
     episodes = read_batch_csv(batch_dir, "episodes")
     violations = read_batch_csv(batch_dir, "violations")
     states = read_batch_csv(batch_dir, "pair_states")
