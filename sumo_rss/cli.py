@@ -6,6 +6,7 @@ Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import warnings
@@ -21,12 +22,13 @@ EXIT_INTERRUPTED = 130
 
 _RUN_EXAMPLES = """examples:
   sumo-rss run scenarios/highway_dense.toml
-  sumo-rss run scenarios/highway_dense.toml --controller epsilon      # the ego driven by the EPSILON planner
+  sumo-rss run scenarios/highway_dense.toml --controller epsilon  # -> results/highway_dense__controller=epsilon/0/
   sumo-rss run scenarios/merge_onramp.toml --seed 3 --duration 60 --out results/ --fcd
 """
 _BATCH_EXAMPLES = """examples:
   sumo-rss batch scenarios/default.toml                      # -> results/default/
   sumo-rss batch scenarios/default.toml --seeds 0:20 --workers 2
+  sumo-rss batch scenarios/default.toml --duration 120 --out results/short   # every run 120 simulated s
   sumo-rss batch scenarios/highway_dense.toml scenarios/merge_onramp.toml --seeds 1,7,42 --out results/two
   sumo-rss batch scenarios/default.toml --rss-preset ad_rss krauss --out results/presets
   sumo-rss batch scenarios/highway_dense.toml --seeds 0:5 --controller epsilon sumo mpdm --workers 2
@@ -72,9 +74,15 @@ def _positive_float(text: str) -> float:
         value = float(text)
     except ValueError:
         value = -1.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}")
+    if not 0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a finite number of seconds > 0, got {text!r}")
     return value
+
+
+def _positive_int(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return int(text)
 
 
 def _seed(text: str) -> int:
@@ -105,7 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", parents=[common], help="co-simulate one scenario with one seed",
                          description="Co-simulate one scenario and write its run directory "
-                                     "OUT/<scenario>/<seed>/ (resolved scenario.toml, summary.json, SUMO logs).",
+                                     "OUT/<scenario>/<seed>/ (resolved scenario.toml, summary.json, SUMO logs); "
+                                     "with --controller C, OUT/<scenario>__controller=C/<seed>/, as a batch's "
+                                     "controller sweep names it.",
                          epilog=_RUN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("scenario", type=Path, help="scenario TOML file")
     run.add_argument("--seed", type=_seed, help="random seed (default: the scenario's)")
@@ -127,7 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("specs", nargs="+", type=Path, metavar="SPEC",
                        help="batch file ([batch] table) or scenario file")
     batch.add_argument("--seeds", type=_parse_seeds, help="A:B (B excluded) or 1,2,3 (default: the file's)")
-    batch.add_argument("--workers", type=int, default=1, help="parallel local processes (default 1)")
+    batch.add_argument("--duration", type=_positive_float, metavar="S",
+                       help="simulated seconds of every run (default: each scenario's)")
+    batch.add_argument("--workers", type=_positive_int, default=1, help="parallel local processes (default 1)")
     batch.add_argument("--ray-address", metavar="ADDR",
                        help="run on Ray: 'auto', 'host:port' or 'local' (needs the 'ray' extra)")
     batch.add_argument("--rss-preset", nargs="+", choices=PRESETS, metavar="P",
@@ -198,9 +210,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="held-out seeds, never trained on (default 100:103)")
     intent.add_argument("--duration", type=_positive_float, metavar="S",
                         help="simulated seconds per run (default: the scenario's)")
-    intent.add_argument("--epochs", type=int, default=30, help="training epochs (default 30)")
+    intent.add_argument("--epochs", type=_positive_int, default=30, help="training epochs (default 30)")
     intent.add_argument("--seed", type=_seed, default=0, help="training seed (default 0)")
-    intent.add_argument("--workers", type=int, default=1, help="parallel SUMO processes for recording (default 1)")
+    intent.add_argument("--workers", type=_positive_int, default=1,
+                        help="parallel SUMO processes for recording (default 1)")
     intent.add_argument("--all-samples", action="store_true",
                         help="also record samples where lanes do not branch (CFB uses the rules there)")
     intent.add_argument("--reuse-data", action="store_true",
@@ -215,7 +228,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .batch.runner import run_directory, run_one
-    from .batch.spec import Task
+    from .batch.spec import Task, variant_name
     from .scenario import load_scenario
 
     spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration,
@@ -227,11 +240,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
             if round(t / spec.step_s) % 50 == 0:
                 bar.refresh()
 
-        summary = run_one(spec, args.out, fcd=True if args.fcd else None, on_step=on_step)
+        # Runs with another controller go to their own folder, as in a batch sweep, not over the scenario's run.
+        variant = variant_name({"controller": args.controller}) if args.controller else ""
+        summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step)
     print(f"{spec.name} seed {spec.seed}: {summary.steps} steps, {summary.vehicles_inserted} vehicles "
           f"(peak {summary.peak_vehicles}), {summary.collisions} collisions, {summary.teleports} teleports, "
           f"{summary.episodes} RSS episodes, {summary.real_time_factor:.0f}x real time "
-          f"-> {run_directory(args.out, Task(spec, ''))}")
+          f"-> {run_directory(args.out, Task(spec, variant))}")
     return 0
 
 
@@ -257,6 +272,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             spec = BatchSpec(path, (scenario,), (scenario.seed,), {})
         if args.seeds is not None:
             spec = replace(spec, seeds=tuple(args.seeds))
+        if args.duration is not None:
+            spec = replace(spec, scenarios=tuple(s.with_overrides(duration_s=args.duration) for s in spec.scenarios))
         swept = {key: tuple(values) for key, values in (("rss_preset", args.rss_preset),
                                                          ("controller", args.controller)) if values}
         spec = replace(spec, grid={**spec.grid, **swept})  # the command line's sweeps replace the file's
@@ -283,6 +300,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_audit(args: argparse.Namespace) -> int:
+    from xml.sax import SAXException
+
     from .batch.runner import param_resolver
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
@@ -291,6 +310,11 @@ def _cmd_audit(args: argparse.Namespace) -> int:
 
     if not args.net.is_file():
         raise FcdError(f"{args.net}: network file not found")
+    try:  # before the vTypes, which SUMO loads on this network
+        network = RoadNetwork.from_file(args.net)
+    except (ValueError, SAXException) as exc:
+        raise FcdError(str(exc) if isinstance(exc, ValueError) else f"{args.net}: not a SUMO network ({exc})"
+                       ) from None
     for path in args.vtypes or ():
         if not path.is_file():
             raise FcdError(f"{path}: vType file not found")
@@ -311,7 +335,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         signal_rule = not args.no_signal_rule
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
-    result = audit_fcd(args.fcd, RoadNetwork.from_file(args.net), resolver, vehicles=vehicles,
+    result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                        collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
                        run_id=run_id, signal_rule=signal_rule)
     result.to_csv(args.out)

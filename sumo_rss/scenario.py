@@ -28,6 +28,7 @@ DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
 CONTROLLERS = ("sumo", "epsilon", "mpdm")
 BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
 MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer
+MAX_DURATION_S = 7 * 86400.0  # [s] the longest run a scenario may ask for
 
 
 def networks_root() -> Path:
@@ -168,14 +169,18 @@ class ScenarioSpec:
             if not 0 <= seed <= MAX_SEED:
                 raise ScenarioError(self.source, "seed", f"expected an integer in [0, {MAX_SEED}]", seed)
             spec = replace(spec, seed=seed)
-        if duration_s is not None:
-            if duration_s <= 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
+        if duration_s is not None:  # the file's duration_s is replaced: errors name the override, not the file's
+            key = "duration_s override (e.g. --duration)"
+            if not duration_s > 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
                 lower = f"ego.depart_s ({self.ego.depart_s:g})" if self.ego is not None else "0"
-                raise ScenarioError(self.source, "duration_s", f"expected a number > {lower}", duration_s)
+                raise ScenarioError(self.source, key, f"expected a number > {lower}", duration_s)
+            if not duration_s <= MAX_DURATION_S:
+                raise ScenarioError(self.source, key, f"expected a number <= {MAX_DURATION_S:.0f} (7 days)",
+                                    duration_s)
             for flow in self.demand.flows:  # a flow that runs until the end must begin before it
                 if flow.end_s is None and duration_s <= flow.begin_s:
-                    raise ScenarioError(self.source, "duration_s", f"expected a number > the begin_s of flow "
-                                                                   f"{flow.id!r} ({flow.begin_s:g})", duration_s)
+                    raise ScenarioError(self.source, key, f"expected a number > the begin_s of flow "
+                                                          f"{flow.id!r} ({flow.begin_s:g})", duration_s)
             spec = replace(spec, duration_s=float(duration_s))
         return spec
 
@@ -229,11 +234,14 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
 
 
 def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
+    if isinstance(data.get("batch"), dict):
+        raise ScenarioError(path, "batch", "expected a scenario file, not a batch file ([batch] table): run it with "
+                                           "'sumo-rss batch'", has_got=False)
     top = TableReader(data, path)
     name = top.string("name", path.stem)
     network, net_file = _read_network(top, path)
     topology = _topology(top, net_file)
-    duration = top.number("duration_s", min=0.0, max=7 * 86400.0, min_exclusive=True)
+    duration = top.number("duration_s", min=0.0, max=MAX_DURATION_S, min_exclusive=True)
     step = top.number("step_s", 0.1, min=0.001, max=1.0)
     seed = top.integer("seed", 0, min=0, max=MAX_SEED)
     sumo = _read_sumo(top.table("sumo"))

@@ -169,11 +169,11 @@ class TableReader:
 
 def _range_text(noun: str, lo: float | None, hi: float | None, lo_exclusive: bool) -> str:
     if lo is not None and hi is not None:
-        return f"{noun} in {'(' if lo_exclusive else '['}{lo:g}, {hi:g}]"
+        return f"{noun} in {'(' if lo_exclusive else '['}{lo:.15g}, {hi:.15g}]"
     if lo is not None:
-        return f"{noun} {'>' if lo_exclusive else '>='} {lo:g}"
+        return f"{noun} {'>' if lo_exclusive else '>='} {lo:.15g}"
     if hi is not None:
-        return f"{noun} <= {hi:g}"
+        return f"{noun} <= {hi:.15g}"
     return noun
 
 

@@ -81,21 +81,26 @@ def test_same_scenario_and_seed_give_byte_identical_audit_csvs(tmp_path):
 
 
 def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, valid_scenario):
-    """``run --controller`` replaces the scenario's controller (recorded in the resolved scenario); ``batch
-    --controller`` sweeps controllers as variants; a scenario without an ego is refused with a clear error."""
+    """``run --controller`` replaces the scenario's controller (recorded in the resolved scenario) and writes the
+    run where a batch's controller sweep would, beside the scenario's own run; ``batch --controller`` sweeps
+    controllers as variants; a scenario without an ego is refused with a clear error."""
     valid_scenario["duration_s"] = 12.0
     scenario = write_scenario(tmp_path, valid_scenario, "hw.toml")
     proc = _cli("run", str(scenario), "--controller", "epsilon", "--out", str(tmp_path / "one"), "--quiet")
     assert proc.returncode == 0, proc.stderr
-    run_dir = tmp_path / "one" / "hw" / "1"
+    run_dir = tmp_path / "one" / "hw__controller=epsilon" / "1"
+    assert str(run_dir) in proc.stdout
+    assert json.loads((run_dir / "summary.json").read_text())["run_id"] == "hw__controller=epsilon/1"
     assert load_scenario(run_dir / "scenario.toml").ego.controller == "epsilon"
     planner = json.loads((run_dir / "planner.json").read_text())
     assert planner["cycles"] >= 100  # the ego departs at 1 s and is planned for every step from then on
-    proc = _cli("batch", str(scenario), "--controller", "sumo", "mpdm", "--out", str(tmp_path / "sweep"), "--quiet")
+    proc = _cli("batch", str(scenario), "--controller", "sumo", "mpdm", "--duration", "8", "--out",
+                str(tmp_path / "sweep"), "--quiet")
     assert proc.returncode == 0, proc.stderr
     for controller in ("sumo", "mpdm"):
         resolved = tmp_path / "sweep" / f"hw__controller={controller}" / "1" / "scenario.toml"
         assert load_scenario(resolved).ego.controller == controller
+        assert load_scenario(resolved).duration_s == 8.0  # --duration of the batch
     assert not (tmp_path / "sweep" / "hw__controller=sumo" / "1" / "planner.json").exists()
     del valid_scenario["ego"]
     no_ego = write_scenario(tmp_path, valid_scenario, "no_ego.toml")

@@ -150,6 +150,21 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
     assert proc.returncode == 2 and "expected <fcd-export>" in proc.stderr
     proc = _cli("audit", str(tmp_path / "nope.xml"), "--net", str(HIGHWAY))
     assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
+    # A route file or a non-XML file given as the network is named as the network, not as a vType problem.
+    (tmp_path / "junk.xml").write_text("hello")
+    for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: expected a SUMO network (.net.xml) with "
+                                                         "lanes, found none"),
+                         (tmp_path / "junk.xml", "junk.xml: not a SUMO network (")):
+        proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(net), "--vtypes",
+                    str(dense_run / "routes.rou.xml"))
+        assert proc.returncode == 2 and message in proc.stderr and "vType" not in proc.stderr, proc.stderr
+    # A value that is not a number names the vehicle and the attribute.
+    bad = tmp_path / "bad_x.xml"
+    bad.write_text('<fcd-export><timestep time="0.00"><vehicle id="car.7" x="abc" y="1" angle="90" speed="3" '
+                   'lane="hw0_0" pos="5"/></timestep></fcd-export>')
+    proc = _cli("audit", str(bad), "--net", str(HIGHWAY), "--out", str(tmp_path / "out2"))
+    assert proc.returncode == 2
+    assert "bad_x.xml, time step 0.0 s: vehicle 'car.7': x: expected a number, got 'abc'" in proc.stderr, proc.stderr
 
 
 def test_vtypes_are_read_as_sumo_resolves_them(tmp_path):

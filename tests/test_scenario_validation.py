@@ -176,3 +176,26 @@ def test_a_vtype_with_probability_0_serves_only_the_flows_that_name_it(tmp_path,
     write_route_file(spec, tmp_path / "r.rou.xml")
     mix = ET.parse(tmp_path / "r.rou.xml").getroot().find("vTypeDistribution")
     assert {v.get("id"): v.get("probability") for v in mix} == {"car": "1", "bus": "0"}
+
+
+@pytest.mark.parametrize("duration, message", [
+    ("inf", "argument --duration: expected a finite number of seconds > 0, got 'inf'"),
+    ("nan", "argument --duration: expected a finite number of seconds > 0, got 'nan'"),
+    ("1e12", "{path}: duration_s override (e.g. --duration): expected a number <= 604800 (7 days), "
+             "got 1000000000000.0"),
+    ("0.5", "{path}: duration_s override (e.g. --duration): expected a number > ego.depart_s (1), got 0.5"),
+])
+def test_a_bad_duration_option_is_refused_naming_the_option(tmp_path, valid_scenario, duration, message):
+    """The scenario file is fine (its duration_s is 30 s): the error names the override, not the file's key."""
+    path = write_scenario(tmp_path, valid_scenario)
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "run", str(path), "--duration", duration, "--out",
+                           str(tmp_path / "out")], capture_output=True, text=True, cwd=REPO, check=False)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].endswith(message.format(path=path))
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_batch_file_given_as_a_scenario_says_so():
+    with pytest.raises(ScenarioError, match=r"default\.toml: batch: expected a scenario file, not a batch file "
+                                            r"\(\[batch\] table\): run it with 'sumo-rss batch'"):
+        load_scenario(REPO / "scenarios" / "default.toml")

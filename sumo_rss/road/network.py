@@ -63,6 +63,8 @@ class RoadNetwork:
         edges = sorted(net.getEdges(withInternal=True), key=lambda e: e.getID())
         edge_index = {e.getID(): i for i, e in enumerate(edges)}
         lanes = [lane for e in edges for lane in e.getLanes()]
+        if not lanes:
+            raise ValueError(f"{path}: expected a SUMO network (.net.xml) with lanes, found none")
         lane_idx = {lane.getID(): k for k, lane in enumerate(lanes)}
 
         offsets = np.zeros(len(lanes))

@@ -149,16 +149,11 @@ class FcdReader:
         where = f"{self.path}, time step {time} s"
         try:
             ids = np.array([r["id"] for r in rows], dtype=str)
-            x = np.array([float(r["x"]) for r in rows])
-            y = np.array([float(r["y"]) for r in rows])
-            angle = np.array([float(r["angle"]) for r in rows])
-            speed = np.array([float(r["speed"]) for r in rows])
             lane_id = np.array([r["lane"] for r in rows], dtype=str)
         except KeyError as exc:
             raise FcdError(f"{where}: a vehicle lacks the attribute {exc} (needed: id, x, y, angle, speed, lane)") \
                 from exc
-        except ValueError as exc:
-            raise FcdError(f"{where}: {exc}") from exc
+        x, y, angle, speed = (_numbers(rows, name, where) for name in ("x", "y", "angle", "speed"))
         try:
             lane = self.network.lane_indices(lane_id)
         except UnknownLaneError as exc:
@@ -246,3 +241,20 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
                                 "overlap", "", 0.0) for c, v in zip(collider, victim)]
         auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
     return auditor.finish()
+
+
+def _numbers(rows: list[dict[str, str]], name: str, where: str) -> np.ndarray:
+    """Attribute ``name`` of every vehicle of a time step as floats; FcdError naming the vehicle and the value."""
+    try:
+        return np.array([float(r[name]) for r in rows])
+    except (KeyError, ValueError):
+        for r in rows:  # find the vehicle to name
+            if name not in r:
+                raise FcdError(f"{where}: vehicle {r.get('id', '?')!r} lacks the attribute '{name}' (needed: id, x, "
+                               "y, angle, speed, lane)") from None
+            try:
+                float(r[name])
+            except ValueError:
+                raise FcdError(f"{where}: vehicle {r.get('id', '?')!r}: {name}: expected a number, got "
+                               f"{r[name]!r}") from None
+        raise
