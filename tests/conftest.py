@@ -52,9 +52,12 @@ def write_scenario(folder: Path, data: dict, name: str = "scenario.toml") -> Pat
     return path
 
 
-def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test"):
+def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test", routes: bool = True):
     """Co-simulate ``spec`` for ``seconds``, calling ``setup()`` once and ``control(time)`` before every step
-    (libsumo commands), and audit every step; returns the AuditResult."""
+    (libsumo commands), and audit every step; returns the AuditResult. ``routes=False`` audits the snapshots
+    without the vehicles' routes, as an offline audit of an FCD file without its route file."""
+    from dataclasses import replace
+
     from sumo_rss.batch.runner import param_resolver
     from sumo_rss.road.network import RoadNetwork
     from sumo_rss.rss.auditor import Auditor, CollisionInput
@@ -66,7 +69,7 @@ def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test"):
         while session.steps < round(seconds / spec.step_s):
             control(session.time)
             seen = len(session.collisions)
-            snapshot = session.step()
+            snapshot = session.step() if routes else replace(session.step(), route_edges=None)
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
                                        for c in session.collisions[seen:]])
     return auditor.finish()

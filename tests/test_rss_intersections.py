@@ -169,10 +169,12 @@ def test_c_ramp_car_forcing_into_the_motorway_lane_is_responsible(tmp_path):
     assert set(result.violations.vehicle_id) == {"ramp"}
 
 
-def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path):
+@pytest.mark.parametrize("routes", [True, False])
+def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path, routes):
     """N-S through traffic turns yellow at 30 s (red at 33 s). At 8 m/s a car needs 8 m to stop at b_min = 4:
     'early' is 20 m before the line at 30 s (could stop, crosses on yellow: violation), 'late' 5 m (could not:
-    no violation); 'runner' crosses W-E, red all along (violation)."""
+    no violation); 'runner' crosses W-E, red all along (violation). Without the routes (an FCD file audited
+    without its route file) the link a car takes is the one whose stop line it crosses: the same verdicts."""
     network = RoadNetwork.from_file(NETWORKS / "intersection_tls" / "intersection_tls.net.xml")
     to_line = float(network.lane_length[network.lane_indices(["N_in_0"])[0]])
     spec = _spec(tmp_path, "intersection_tls", 36.0)
@@ -187,7 +189,7 @@ def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path):
         for vid in ("late", "early", "runner"):
             _drive(vid, 0.0)
 
-    result = _audit(spec, setup, control)
+    result = audit_commanded(spec, setup, control, spec.duration_s, "junction", routes=routes)
     signal = result.violations[result.violations.role == "signal"]
     assert dict(zip(signal.vehicle_id, signal.constraint)) == {"early": "signal-yellow-light",
                                                                "runner": "signal-red-light"}

@@ -43,7 +43,8 @@ class SignalRule:
         self.junctions = junctions
         self.run_id = run_id
         self.records: list[dict] = []
-        self._approach: dict[str, tuple[int, str, bool]] = {}  # id → (link, its state, could stop at yellow)
+        # id → {link: (its state, could stop at yellow)} for the links it may take from its approach lane
+        self._approach: dict[str, dict[int, tuple[str, bool]]] = {}
 
     def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
         j = self.junctions
@@ -51,41 +52,46 @@ class SignalRule:
             return
         lane = frame.lane
         inside = j.lane_link[lane]
-        link = self._approach_links(snapshot, frame)
+        links = self._approach_links(frame)
         approach = {}
-        for k in np.flatnonzero((link >= 0) | (inside >= 0)):
+        for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0)):
             vid = str(snapshot.ids[k])
-            before = self._approach.get(vid)
+            before = self._approach.get(vid, {})
             if inside[k] >= 0:
-                if before is not None and before[0] == inside[k]:  # crossed the stop line during this step
-                    self._judge(vid, str(snapshot.vclass[k]), before, float(snapshot.speed[k]), snapshot.time)
+                if int(inside[k]) in before:  # crossed the stop line of this link during this step
+                    self._judge(vid, str(snapshot.vclass[k]), before[int(inside[k])], float(snapshot.speed[k]),
+                                snapshot.time)
                 continue
-            lk = int(link[k])
-            state = snapshot.tls_states.get(j.link_tls[lk], "")
-            char = state[j.link_tls_index[lk]] if 0 <= j.link_tls_index[lk] < len(state) else ""
-            could_stop = False
-            if char and char in YELLOW:
-                if before is not None and before[0] == lk and before[1] in YELLOW:
-                    could_stop = before[2]  # decided when it turned yellow
-                else:
-                    to_line = self.network.lane_length[lane[k]] - snapshot.lane_pos[k]
-                    b_min = frame.params.lon_brake_min[k]
-                    could_stop = bool(snapshot.speed[k] ** 2 / (2.0 * b_min) <= to_line)
-            approach[vid] = (lk, char, could_stop)
+            states = {}
+            for lk in (int(x) for x in links[k] if x >= 0):
+                state = snapshot.tls_states.get(j.link_tls[lk], "")
+                char = state[j.link_tls_index[lk]] if 0 <= j.link_tls_index[lk] < len(state) else ""
+                could_stop = False
+                if char and char in YELLOW:
+                    if lk in before and before[lk][0] in YELLOW:
+                        could_stop = before[lk][1]  # decided when it turned yellow
+                    else:
+                        to_line = self.network.lane_length[lane[k]] - snapshot.lane_pos[k]
+                        b_min = frame.params.lon_brake_min[k]
+                        could_stop = bool(snapshot.speed[k] ** 2 / (2.0 * b_min) <= to_line)
+                states[lk] = (char, could_stop)
+            approach[vid] = states
         self._approach = approach
 
-    def _approach_links(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> np.ndarray:
-        """The signalised link each car on an approach lane takes (by its route), -1 if none or unknown."""
+    def _approach_links(self, frame: VehicleFrame) -> np.ndarray:
+        """[n, links of a lane] the signalised links (-1: none) each car on an approach lane may take: the one of
+        its route, or every one of its lane where its route is unknown (an FCD without routes); the stop line it
+        crosses tells which."""
         j = self.junctions
         cand = j.lane_links[frame.lane]
         next_edge = next_route_edge(frame.route_edges, frame.edge)
-        match = (cand >= 0) & (j.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]) & \
-            (j.link_tls_index[np.maximum(cand, 0)] >= 0)
-        has = match.any(axis=1)
-        return np.where(has, cand[np.arange(len(cand)), match.argmax(axis=1)], -1)
+        unknown = (frame.route_edges < 0).all(axis=1)
+        signalised = (cand >= 0) & (j.link_tls_index[np.maximum(cand, 0)] >= 0)
+        on_route = j.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]
+        return np.where(signalised & (on_route | unknown[:, None]), cand, -1)
 
-    def _judge(self, vid: str, vclass: str, before: tuple[int, str, bool], speed: float, time: float) -> None:
-        _, char, could_stop = before
+    def _judge(self, vid: str, vclass: str, before: tuple[str, bool], speed: float, time: float) -> None:
+        char, could_stop = before
         if char and char in RED:
             constraint = SignalConstraint.RED_LIGHT
         elif char and char in YELLOW and could_stop:
