@@ -14,7 +14,7 @@ from typing import Any
 
 from .errors import ScenarioError
 from .planner.behavior.cost_weights import CostWeights
-from .road.topology import NetTopology, read_topology
+from .road.topology import EdgeInfo, NetTopology, read_topology
 from .sumo_home import vtype_attribute_names
 from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
 from .validation import TableReader, one_of, read_toml
@@ -243,6 +243,8 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     topology = _topology(top, net_file)
     duration = top.number("duration_s", min=0.0, max=MAX_DURATION_S, min_exclusive=True)
     step = top.number("step_s", 0.1, min=0.001, max=1.0)
+    if abs(step * 1000.0 - round(step * 1000.0)) > 1e-6:
+        raise top.error("step_s", "expected a whole number of milliseconds (SUMO rounds its step to 1 ms)", step)
     seed = top.integer("seed", 0, min=0, max=MAX_SEED)
     sumo = _read_sumo(top.table("sumo"))
     demand = _read_demand(top.table("demand"), topology, duration)
@@ -381,6 +383,11 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
             raise f.error("depart_speed", f"expected a speed in [0, 100] m/s or one of "
                                           f"{', '.join(repr(v) for v in DEPART_SPEEDS)}", speed)
         vtype = f.string("vtype", None, choices=sorted(names)) if f.has("vtype") else None
+        if not isinstance(speed, str):
+            slowest = min((v for v in vtypes if (v.id == vtype if vtype else v.probability > 0)),
+                          key=lambda v: v.max_speed)
+            _check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
+                                f"the max_speed of vType {slowest.id!r}")
         flows.append(FlowSpec(
             id=f.string("id", f"flow{i}"), route=route,
             veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
@@ -452,8 +459,21 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
         vehicle=_read_vtype(t.table("vehicle"), "ego", with_probability=False),
         planner=_read_planner(t.table("planner")),
     )
+    _check_depart_speed(t, spec.depart_speed, first, min(spec.vehicle.max_speed, spec.desired_speed),
+                        "the ego's top speed under SUMO, min(vehicle.max_speed, desired_speed)")
     t.finish()
     return spec
+
+
+def _check_depart_speed(t: TableReader, speed: float, edge: EdgeInfo, top_speed: float, what: str) -> None:
+    """SUMO stops the run when a car departs faster than its vType's maxSpeed (``top_speed``, described by
+    ``what``) or its lane's speed limit."""
+    if speed > top_speed:
+        raise t.error("depart_speed", f"expected at most {top_speed:g} m/s, {what} (SUMO refuses a faster "
+                                      "departure)", speed)
+    if speed > edge.speed:
+        raise t.error("depart_speed", f"expected at most {edge.speed:g} m/s, the speed limit of {edge.id!r} (SUMO "
+                                      "refuses a faster departure)", speed)
 
 
 def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:

@@ -14,6 +14,7 @@ from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor
 from sumo_rss.rss.fcd import audit_fcd, read_vehicle_info
 from sumo_rss.sim.session import Session
+from sumo_rss.trajectory import TrajectoryState
 
 LANE_Y = -5.25  # centre of highway lane 1 (lanes 3.5 m wide, the edge's left border at y = 0) [m]
 SPEED = 25.0  # [m/s]
@@ -125,3 +126,24 @@ def test_the_fcd_of_a_placed_ego_gives_the_online_audit_offline(valid_scenario, 
         assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name
     on.to_csv(tmp_path / "written")  # the CSVs and the parameters they were judged with
     assert json.loads((tmp_path / "written" / "rss_params.json").read_text()) == on.params
+
+
+def test_a_placed_ego_that_stands_longer_than_the_teleport_time_is_not_teleported(valid_scenario, tmp_path):
+    """time_to_teleport_s = 3 s; the ego departs standing and is placed where it stands for 10 s. SUMO counts its
+    waiting time like anyone's and took it off the road after 3 s, putting it back at 33 m/s."""
+    valid_scenario["sumo"] = {"time_to_teleport_s": 3.0}
+    valid_scenario["duration_s"] = 12.0
+    valid_scenario["ego"].update(depart_s=0.0, depart_speed=0.0, depart_pos_m=300.0)
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with Session(spec) as session:
+        while not session.ego_on_road:
+            session.step()
+        k = session.snapshot.index_of("ego")
+        x, y, heading = (float(a[k]) for a in (session.snapshot.x, session.snapshot.y, session.snapshot.heading))
+        speeds = []
+        for _ in range(100):
+            session.place_ego(TrajectoryState(x, y, heading, 0.0, 0.0))
+            snapshot = session.step()
+            speeds.append(float(snapshot.speed[snapshot.index_of("ego")]))
+        assert session.teleports == 0
+    assert max(speeds) == 0.0

@@ -2,15 +2,17 @@
 motion, collision bookkeeping and the session's lifecycle rules."""
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from dataclasses import asdict
 
 import numpy as np
 import pytest
 import sumolib
 
-from conftest import NETWORKS, SCENARIOS, SHIPPED_SCENARIOS
+from conftest import NETWORKS, SCENARIOS, SHIPPED_SCENARIOS, write_scenario
 from sumo_rss import SessionError, load_scenario
-from sumo_rss.sim.session import Session
+from sumo_rss.sim.demand import write_route_file
+from sumo_rss.sim.session import Session, as_written, sumo_arguments
 
 
 def _spec(name: str, **overrides):
@@ -160,3 +162,25 @@ def test_session_is_closed_when_the_caller_raises():
             raise RuntimeError("boom")
     with Session(spec) as again:  # the slot was released and SUMO restarted cleanly
         assert again.step().time == 0.0  # SUMO's output time stamp of the first step
+
+
+def test_snapshot_values_are_rounded_as_sumo_writes_them():
+    """Correctly rounded to 6 decimals, as SUMO's --precision 6 output (np.round scales by 10^6 first and read
+    133.263348 and 296.255866 for these two, which SUMO writes as 133.263349 and 296.255865)."""
+    ties = np.arange(-2000, 2000) * 0.0731 + 0.0000005  # values near a tie in the 7th decimal
+    values = np.concatenate([[133.2633485, 296.25586549999997], ties])
+    expected = [float(f"{v:.6f}") for v in values]
+    assert as_written(values).tolist() == expected
+    assert as_written(values.reshape(2, -1)).ravel().tolist() == expected
+
+
+def test_the_route_file_and_command_line_keep_every_digit_of_a_time(tmp_path, valid_scenario):
+    """Six significant digits wrote an ego departure at 12345.65 s as 12345.6 (0.05 s early)."""
+    valid_scenario["duration_s"] = 20000.25
+    valid_scenario["ego"]["depart_s"] = 12345.65
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    routes = ET.parse(write_route_file(spec, tmp_path / "routes.rou.xml")).getroot()
+    assert routes.find("vehicle[@id='ego']").get("depart") == "12345.65"
+    assert routes.find("flow").get("end") == "20000.25"
+    args = sumo_arguments(spec, tmp_path / "routes.rou.xml")
+    assert args[args.index("--end") + 1] == "20000.25" and args[args.index("--step-length") + 1] == "0.1"

@@ -12,11 +12,13 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class EdgeInfo:
-    """A normal (non-internal) edge: lane count and length of its lanes [m]."""
+    """A normal (non-internal) edge: lane count, length of its lanes [m] and the lowest speed limit of its lanes
+    [m/s]."""
 
     id: str
     num_lanes: int
     length: float
+    speed: float
 
 
 @dataclass(frozen=True)
@@ -37,13 +39,15 @@ def read_topology(net_file: Path) -> NetTopology:
     try:
         for event, elem in ET.iterparse(net_file, events=("start", "end")):
             if event == "start" and elem.tag == "edge" and elem.get("function") != "internal":
-                current = (elem.get("id", ""), [])
+                current = (elem.get("id", ""), [], [])
             elif event == "end" and elem.tag == "lane" and current is not None:
                 current[1].append(float(elem.get("length", "0")))
+                current[2].append(float(elem.get("speed", "13.89")))  # SUMO's default lane speed
             elif event == "end" and elem.tag == "edge":
                 if current is not None:
-                    edge_id, lengths = current
-                    edges[edge_id] = EdgeInfo(edge_id, len(lengths), max(lengths, default=0.0))
+                    edge_id, lengths, speeds = current
+                    edges[edge_id] = EdgeInfo(edge_id, len(lengths), max(lengths, default=0.0),
+                                              min(speeds, default=0.0))
                 current = None
                 elem.clear()
             elif event == "end" and elem.tag == "connection":

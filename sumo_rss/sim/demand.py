@@ -7,8 +7,11 @@ from pathlib import Path
 from ..scenario import BACKGROUND_DISTRIBUTION, EGO_TYPE, EgoSpec, ScenarioSpec, VehicleTypeSpec
 
 
-def _fmt(value: float) -> str:
-    return f"{value:.6g}"
+def sumo_number(value: float) -> str:
+    """``value`` as SUMO reads it back exactly (the shortest round-trip text; "30", not "30.0"): six significant
+    digits wrote a departure at 12345.65 s as 12345.6."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def _vtype_element(vt: VehicleTypeSpec, type_id: str, *, probability: float | None,
@@ -16,32 +19,37 @@ def _vtype_element(vt: VehicleTypeSpec, type_id: str, *, probability: float | No
     attrs = {
         "id": type_id,
         "vClass": vt.vclass,
-        "length": _fmt(vt.length),
-        "width": _fmt(vt.width),
-        "minGap": _fmt(vt.min_gap),
-        "accel": _fmt(vt.accel),
-        "decel": _fmt(vt.decel),
-        "emergencyDecel": _fmt(vt.emergency_decel),
-        "sigma": _fmt(vt.sigma),
-        "tau": _fmt(vt.tau),
-        "maxSpeed": _fmt(vt.max_speed if max_speed is None else max_speed),
-        "speedFactor": _fmt(vt.speed_factor),
-        "speedDev": _fmt(vt.speed_dev if speed_dev is None else speed_dev),
+        "length": sumo_number(vt.length),
+        "width": sumo_number(vt.width),
+        "minGap": sumo_number(vt.min_gap),
+        "accel": sumo_number(vt.accel),
+        "decel": sumo_number(vt.decel),
+        "emergencyDecel": sumo_number(vt.emergency_decel),
+        "sigma": sumo_number(vt.sigma),
+        "tau": sumo_number(vt.tau),
+        "maxSpeed": sumo_number(vt.max_speed if max_speed is None else max_speed),
+        "speedFactor": sumo_number(vt.speed_factor),
+        "speedDev": sumo_number(vt.speed_dev if speed_dev is None else speed_dev),
         "carFollowModel": vt.car_follow_model,
         "laneChangeModel": vt.lane_change_model,
     }
     if probability is not None:
-        attrs["probability"] = _fmt(probability)
+        attrs["probability"] = sumo_number(probability)
     for name, value in {**vt.car_follow_params, **vt.lane_change_params}.items():
-        attrs[name] = _fmt(value)
+        attrs[name] = sumo_number(value)
     return ET.Element("vType", attrs)
 
 
 def ego_vtype(ego: EgoSpec) -> ET.Element:
-    """The ego's vType: its desired speed is ``min(desired_speed, lane speed limit)`` under SUMO control."""
+    """The ego's vType: its desired speed is ``min(desired_speed, speed_factor x lane speed limit)`` under SUMO
+    control, and SUMO never teleports it (``timeToTeleport`` -1): a planner-driven ego that waited longer than the
+    scenario's ``time_to_teleport_s`` was taken off the road and put back at 33 m/s (+-330 m/s² in its
+    snapshots)."""
     vt = ego.vehicle
-    return _vtype_element(vt, EGO_TYPE, probability=None, speed_dev=0.0,
-                          max_speed=min(vt.max_speed, ego.desired_speed))
+    element = _vtype_element(vt, EGO_TYPE, probability=None, speed_dev=0.0,
+                             max_speed=min(vt.max_speed, ego.desired_speed))
+    element.set("timeToTeleport", "-1")
+    return element
 
 
 def write_route_file(spec: ScenarioSpec, path: Path) -> Path:
@@ -60,23 +68,23 @@ def write_route_file(spec: ScenarioSpec, path: Path) -> Path:
             "id": flow.id,
             "type": flow.vtype or BACKGROUND_DISTRIBUTION,
             "route": f"route_{flow.id}",
-            "begin": _fmt(flow.begin_s),
-            "end": _fmt(spec.duration_s if flow.end_s is None else flow.end_s),
+            "begin": sumo_number(flow.begin_s),
+            "end": sumo_number(spec.duration_s if flow.end_s is None else flow.end_s),
             "departLane": flow.depart_lane,
-            "departSpeed": flow.depart_speed if isinstance(flow.depart_speed, str) else _fmt(flow.depart_speed),
+            "departSpeed": flow.depart_speed if isinstance(flow.depart_speed, str) else sumo_number(flow.depart_speed),
         }
         if flow.veh_per_hour is not None:
-            attrs["vehsPerHour"] = _fmt(flow.veh_per_hour)
+            attrs["vehsPerHour"] = sumo_number(flow.veh_per_hour)
         else:
-            attrs["probability"] = _fmt(flow.probability)  # type: ignore[arg-type]
+            attrs["probability"] = sumo_number(flow.probability)  # type: ignore[arg-type]
         timed.append((flow.begin_s, order, ET.Element("flow", attrs)))
     if spec.ego is not None:
         ego = spec.ego
         ET.SubElement(root, "route", {"id": f"route_{ego.id}", "edges": " ".join(ego.route)})
         timed.append((ego.depart_s, len(timed), ET.Element("vehicle", {
-            "id": ego.id, "type": EGO_TYPE, "route": f"route_{ego.id}", "depart": _fmt(ego.depart_s),
-            "departLane": ego.depart_lane, "departPos": _fmt(ego.depart_pos_m),
-            "departSpeed": _fmt(ego.depart_speed)})))
+            "id": ego.id, "type": EGO_TYPE, "route": f"route_{ego.id}", "depart": sumo_number(ego.depart_s),
+            "departLane": ego.depart_lane, "departPos": sumo_number(ego.depart_pos_m),
+            "departSpeed": sumo_number(ego.depart_speed)})))
     for _, _, elem in sorted(timed, key=lambda item: (item[0], item[1])):
         root.append(elem)
     ET.indent(root)

@@ -21,7 +21,7 @@ from ..sumo_home import sumo_errors
 from ..trajectory import Trajectory, TrajectoryState
 from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
-from .demand import write_route_file
+from .demand import sumo_number, write_route_file
 from .fcd_output import correct_placed_vehicle
 from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 
@@ -59,11 +59,11 @@ def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | Non
     s = spec.sumo
     args = [
         "sumo", "--net-file", str(spec.net_file), "--route-files", str(route_file),
-        "--begin", "0", "--end", f"{spec.duration_s:g}", "--step-length", f"{spec.step_s:g}", "--seed", str(spec.seed),
-        "--lanechange.duration", f"{s.lanechange_duration_s:g}",
+        "--begin", "0", "--end", sumo_number(spec.duration_s), "--step-length", sumo_number(spec.step_s),
+        "--seed", str(spec.seed), "--lanechange.duration", sumo_number(s.lanechange_duration_s),
         "--collision.action", "warn", "--collision.check-junctions", "true",
-        "--collision.mingap-factor", f"{s.collision_mingap_factor:g}",
-        "--time-to-teleport", f"{s.time_to_teleport_s:g}" if s.time_to_teleport_s > 0 else "-1",
+        "--collision.mingap-factor", sumo_number(s.collision_mingap_factor),
+        "--time-to-teleport", sumo_number(s.time_to_teleport_s) if s.time_to_teleport_s > 0 else "-1",
         "--no-step-log", "true", "--duration-log.disable", "true", "--precision", str(FCD_PRECISION),
     ]
     if log_file is not None:
@@ -75,6 +75,18 @@ def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | Non
     if collision_file is not None:
         args += ["--collision-output", str(collision_file)]
     return args + list(s.extra_args)
+
+
+def as_written(values: np.ndarray) -> np.ndarray:
+    """``values`` rounded to FCD_PRECISION decimals as SUMO writes them: correctly rounded. ``np.round`` scales by
+    10^6 and rounds, which differs near a tie (133.2633485 → 133.263348; SUMO writes 133.263349), so values near
+    one are rounded one by one."""
+    out = np.round(values, FCD_PRECISION)
+    scaled = np.abs(values) * 10.0**FCD_PRECISION
+    near = np.flatnonzero(np.abs(scaled - np.floor(scaled) - 0.5) < 1e-3)
+    if near.size:
+        out.flat[near] = [round(float(v), FCD_PRECISION) for v in values.flat[near]]
+    return out
 
 
 class Session:
@@ -217,9 +229,9 @@ class Session:
 
         def col(var: int, dtype: type = float) -> np.ndarray:
             values = np.fromiter((r[var] for r in rows), dtype=dtype, count=n)
-            return np.round(values, FCD_PRECISION) if dtype is float else values
+            return as_written(values) if dtype is float else values
 
-        xy = np.round(np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2), FCD_PRECISION)
+        xy = as_written(np.array([r[tc.VAR_POSITION] for r in rows], dtype=float).reshape(n, 2))
         lat_speed, accel, speed = col(tc.VAR_SPEED_LAT), col(tc.VAR_ACCELERATION), col(tc.VAR_SPEED)
         if self._ego_controlled and self.ego_id in ids:
             # SUMO reports neither for a vehicle placed by moveToXY: derive them from the placed states.
