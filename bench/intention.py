@@ -1,5 +1,6 @@
-"""Intention estimator: time per planning cycle for 20 agents, all on branching lanes (the worst case: every
-agent goes through the network), with the shipped weights on one core.
+"""Intention estimator: time per planning cycle for 20 agents, all on branching approach lanes, with the shipped
+weights on one core. The network judges the agents it finds two or more candidate lanes for (recorded as
+``agents_using_the_network``: 14 of 20 in the recorded run); the others get the rule-based belief.
 
 The agents are real: the busiest snapshot of 200 s of intersection_priority traffic, its vehicles on branching
 approach lanes repeated up to 20. Timed: candidate centrelines + history + network (LearnedBelief), and the

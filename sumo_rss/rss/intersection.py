@@ -11,9 +11,10 @@ safe if any of three conditions holds:
 3. *no time overlap*: one car's earliest arrival (accelerating during ρ, then braking at b_min) comes after the
    other's latest exit (braking at b_max from now), or neither can arrive at all.
 
-Formulas follow ad_rss 5.0.0 number for number, with two deliberate differences (docs/rss.md): with equal
-priority condition 1 needs *both* cars able to stop (ad_rss accepts either), and each car's own speed cap is
-used in condition 3 (ad_rss applies the ego's cap to both). All functions broadcast over numpy arrays.
+Formulas follow ad_rss 5.0.0 number for number, with three deliberate differences (docs/rss.md): with equal
+priority condition 1 needs *both* cars able to stop (ad_rss accepts either), each car's own speed cap is used in
+condition 3 (ad_rss applies the ego's cap to both), and a car that has fully left the conflict area is out of the
+situation (:func:`intersection_situations`). All functions broadcast over numpy arrays.
 """
 from __future__ import annotations
 
