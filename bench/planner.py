@@ -42,14 +42,24 @@ SEEDS = (0, 1, 2)
 CLOSED_LOOP_S = 150.0  # simulated seconds per comparison run (the ego departs at 30 s)
 SETTLED_S = 20.0  # [s] after the ego's departure
 LANES_Y = (-8.75, -5.25, -1.75)  # hw0 lane centres
+SLOT_M = 14.5  # [m] between the slots of one lane in the synthetic snapshots (4.5 m cars, 1 m jitter each)
+EGO_CLEAR_M = 30.0  # [m] no synthetic car this near the ego in its lane (centre to centre): a 1 s gap at 25 m/s
 
 
 def synthetic_snapshot(agents: int, rng: np.random.Generator) -> WorldSnapshot:
-    """The ego at x = 600 m in the middle lane of hw0 at 25 m/s; ``agents`` cars spread over the three lanes
-    from 100 m behind to 160 m ahead, some drifting towards a lane boundary (uncertain intentions)."""
+    """The ego at x = 600 m in the middle lane of hw0 at 25 m/s; ``agents`` cars on the three lanes from 100 m
+    behind to 160 m ahead, some drifting towards a lane boundary (uncertain intentions). A plausible traffic
+    state: each car takes a distinct slot of its lane (slots SLOT_M apart: bumper gaps >= 8 m), and none is in
+    the ego's lane from EGO_CLEAR_M behind to EGO_CLEAR_M ahead of it. Cars placed anywhere overlapped the ego
+    or stood a few metres from it in most cycles, and the motion layer failed there (corridor blocked)."""
     n = agents + 1
-    x = np.concatenate([[600.0], 600.0 + np.linspace(-100.0, 160.0, agents) + rng.uniform(-3, 3, agents)])
-    lane = np.concatenate([[1], rng.integers(0, 3, agents)])
+    slots = np.arange(-100.0, 160.0 + 1e-9, SLOT_M)
+    free = [(k, at) for k in range(3) for at in slots if k != 1 or abs(at) >= EGO_CLEAR_M]
+    if agents > len(free):
+        raise ValueError(f"at most {len(free)} agents fit the synthetic road, asked for {agents}")
+    taken = np.array(free)[np.sort(rng.choice(len(free), agents, replace=False))]
+    x = np.concatenate([[600.0], 600.0 + taken[:, 1] + rng.uniform(-1.0, 1.0, agents)])
+    lane = np.concatenate([[1], taken[:, 0].astype(int)])
     drift = np.concatenate([[0.0], rng.choice([0.0, 0.0, 0.6, -0.6], agents)])
     y = np.array(LANES_Y)[lane] + drift
     speed = np.concatenate([[25.0], rng.uniform(18.0, 30.0, agents)])
