@@ -191,6 +191,16 @@ def test_vtypes_are_read_as_sumo_resolves_them(tmp_path):
         (("hw0", "hw1", "hw2"), ("hw1", "hw2"), ("hw0", "hw1"), None)
 
 
+def test_a_misspelt_vtype_attribute_is_named_not_silently_ignored(tmp_path):
+    """SUMO ignores an attribute it does not know: 'lenght' leaves the truck at its vClass's 7.1 m."""
+    routes = tmp_path / "typo.rou.xml"
+    routes.write_text('<routes><vType id="lorry" vClass="truck" lenght="4" tau="1.2"/></routes>')
+    with pytest.warns(UserWarning, match=r"typo\.rou\.xml: vType 'lorry': unknown attribute\(s\) lenght, which SUMO "
+                                         r"ignores"):
+        info = read_vehicle_info(routes, HIGHWAY)
+    assert info.sizes["lorry"] == (7.1, 2.4)
+
+
 def test_unknown_vtypes_are_named_once_and_bad_vtypes_are_errors(dense_run, tmp_path):
     reader = FcdReader(dense_run / "fcd.xml", RoadNetwork.from_file(HIGHWAY), read_vehicle_info(None, HIGHWAY))
     with pytest.warns(UserWarning, match=r"fcd\.xml: vType .* is not defined") as caught:

@@ -20,6 +20,7 @@ from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+from ..sumo_home import vtype_attribute_names
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 
@@ -61,6 +62,13 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
             documents.append(ET.parse(path).getroot())
         except ET.ParseError as exc:
             raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+    known = vtype_attribute_names() | {"id"}
+    for path, document in zip(files, documents):
+        for vtype in document.iter("vType"):
+            unknown = sorted(set(vtype.attrib) - known)
+            if unknown:
+                warnings.warn(f"{path}: vType {vtype.get('id', '?')!r}: unknown attribute(s) {', '.join(unknown)}, "
+                              "which SUMO ignores (a typo?)", stacklevel=2)
     try:
         types = sumo_vtypes(net_file, documents, ", ".join(str(p) for p in files))
     except ValueError as exc:
