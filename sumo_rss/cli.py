@@ -312,9 +312,10 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         raise FcdError(f"{args.net}: network file not found")
     try:  # before the vTypes, which SUMO loads on this network
         network = RoadNetwork.from_file(args.net)
-    except (ValueError, SAXException) as exc:
-        raise FcdError(str(exc) if isinstance(exc, ValueError) else f"{args.net}: not a SUMO network ({exc})"
-                       ) from None
+    except ValueError as exc:  # it names the file
+        raise FcdError(str(exc)) from None
+    except SAXException as exc:
+        raise FcdError(f"{args.net}: not a SUMO network ({exc})") from None
     for path in args.vtypes or ():
         if not path.is_file():
             raise FcdError(f"{path}: vType file not found")

@@ -53,6 +53,9 @@ class SignalRule:
         lane = frame.lane
         inside = j.lane_link[lane]
         links = self._approach_links(frame)
+        # Whether each car could stop at its stop line now at b_min (judged when its light turns yellow).
+        can_stop = snapshot.speed ** 2 / (2.0 * frame.params.lon_brake_min) <= \
+            self.network.lane_length[lane] - snapshot.lane_pos
         approach = {}
         for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0)):
             vid = str(snapshot.ids[k])
@@ -71,9 +74,7 @@ class SignalRule:
                     if lk in before and before[lk][0] in YELLOW:
                         could_stop = before[lk][1]  # decided when it turned yellow
                     else:
-                        to_line = self.network.lane_length[lane[k]] - snapshot.lane_pos[k]
-                        b_min = frame.params.lon_brake_min[k]
-                        could_stop = bool(snapshot.speed[k] ** 2 / (2.0 * b_min) <= to_line)
+                        could_stop = bool(can_stop[k])
                 states[lk] = (char, could_stop)
             approach[vid] = states
         self._approach = approach

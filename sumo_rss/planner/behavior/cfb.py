@@ -50,7 +50,8 @@ def branch_scenarios(probabilities: np.ndarray, branched: np.ndarray, k: int = 4
         combos = np.concatenate([np.repeat(combos, choices, axis=0),
                                  np.tile(np.arange(choices), len(combos))[:, None]], axis=1)
         combo_p = np.repeat(combo_p, choices) * np.tile(probabilities[agent], len(combo_p))
-        best = np.sort(np.flatnonzero(combo_p > 0.0)[np.argsort(-combo_p[combo_p > 0.0], kind="stable")[:k]])
+        possible = np.flatnonzero(combo_p > 0.0)
+        best = np.sort(possible[np.argsort(-combo_p[possible], kind="stable")[:k]])
         combos, combo_p = combos[best], combo_p[best]
     order = np.argsort(-combo_p, kind="stable")
     intentions = np.repeat(map_intention[None, :], len(order), axis=0)

@@ -261,8 +261,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                     np.full((samples[layer], 6, G), np.inf)))
             # This step is also the last sample of the layer before: the ego's leader there is the one on the lane
             # that layer tracked (a third look of the leader search where it differs).
-            ending = rollouts.ego_chain[first, layer - 1] if layer > 0 else tracked[:, 0]
-            ending = ending if np.any(ending != tracked[:, 0]) else None
+            ending = rollouts.ego_chain[first, layer - 1] if layer > 0 else None
+            if ending is not None and np.array_equal(ending, tracked[:, 0]):
+                ending = None
         s, d, v = state.x, state.y, state.speed
         if branching:
             lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
@@ -276,9 +277,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, length, width, rss_agents)
         # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both), and at a
         # layer's first step for the ego on the lane the layer before tracked.
-        looks = np.array([tracked, now_chain])
+        looks, recorded = np.array([tracked, now_chain]), 0  # recorded: the look the sample records
         if branching and ending is not None:
-            looks = np.concatenate([looks, looks[:1]])
+            looks, recorded = np.concatenate([looks, looks[:1]]), 2
             looks[2, :, 0] = ending
         ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
         free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
@@ -288,7 +289,6 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             lead_gaps[:, :, 0], lead_speeds[:, :, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], lead_gaps[:, :, 0],
                                                                   lead_speeds[:, :, 0])
         (gap_t, gap_c), (v_t, v_c) = lead_gaps[:2], lead_speeds[:2]
-        recorded = looks.shape[0] - 1 if branching and ending is not None else 0  # the look the sample records
         lead_is_car = lead_gaps[recorded, :, 0] == free_gaps[recorded, :, 0]
         _, vehicle_samples, ego_samples = layers_recorded[-1]
         sample = k - first_sample[layer]
