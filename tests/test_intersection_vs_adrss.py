@@ -160,8 +160,8 @@ def test_owed_response_after_the_danger_threshold_matches_ad_rss():
                              rules=np.zeros(1, np.int8), priority=np.array([code], np.int8),
                              in_front=np.array([1 if safe_after.a_in_front else 2 if safe_after.b_in_front else 0],
                                                np.int8))
-        duties = duties_at_threshold(sit, np.array([0]), np.array([rules], np.int8), np.array([True]),
-                                     np.array([False]))
+        duties = duties_at_threshold(sit, np.array([0]), np.array([rules], np.int8), np.array([code], np.int8),
+                                     np.array([True]), np.array([False]))
         assert tuple(map(bool, duties.must_brake[0])) == (theirs.response == "BrakeMin",
                                                           theirs_b.response == "BrakeMin"), (before, after, rules)
         seen_rules.add(duties.trigger[0])

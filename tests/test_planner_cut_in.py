@@ -66,7 +66,7 @@ def test_a_car_that_cut_in_is_not_charged_the_rss_cost(highway):
 def _owed(other: str, must_brake: bool, same_direction: bool = True) -> OwedResponses:
     no = np.zeros(1, dtype=bool)
     return OwedResponses(np.array([19.0]), np.array([must_brake]), no, no, np.array([not must_brake]), no,
-                         np.zeros(1), np.array([other], dtype=object), np.array([same_direction]))
+                         np.zeros(1), np.array([other], dtype=object), np.array([same_direction]), no)
 
 
 def test_the_cars_owed_no_longitudinal_braking_are_those_of_same_direction_episodes_that_started_laterally():

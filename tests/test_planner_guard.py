@@ -36,7 +36,7 @@ def _ego_alone(speed: float) -> WorldSnapshot:
 def _owing_brake(t_b: float) -> OwedResponses:
     no = np.zeros(1, dtype=bool)
     return OwedResponses(np.array([t_b]), np.ones(1, dtype=bool), no, no, no, no, np.zeros(1), np.array(["x"], object),
-                         np.ones(1, dtype=bool))
+                         np.ones(1, dtype=bool), no)
 
 
 def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_stays_stopped(frame):
@@ -52,10 +52,10 @@ def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_
     assert guard.counts.lon_owed == 2
 
 
-def _owing_lateral(t_b: float, u0: float, other_is_left: bool) -> OwedResponses:
+def _owing_lateral(t_b: float, u0: float, other_is_left: bool, settled: bool = False) -> OwedResponses:
     no = np.zeros(1, dtype=bool)
     return OwedResponses(np.array([t_b]), no, no, no, np.ones(1, dtype=bool), np.array([other_is_left]),
-                         np.array([u0]), np.array(["x"], object), np.ones(1, dtype=bool))
+                         np.array([u0]), np.array(["x"], object), np.ones(1, dtype=bool), np.array([settled]))
 
 
 @pytest.mark.parametrize("t_b, other_is_left, lateral_speed", [
@@ -71,6 +71,17 @@ def test_an_owed_lateral_response_bounds_the_speed_towards_the_other_car(frame, 
     done = guard.apply(_ego_alone(2.0), 0, frame, planned, _owing_lateral(t_b, 0.5, other_is_left))
     assert (done.y + 5.25) / DT == pytest.approx(lateral_speed, abs=1e-6)
     assert guard.counts.lat_owed == int(lateral_speed < 1.0)
+
+
+def test_a_lateral_response_that_has_come_to_rest_keeps_the_ego_from_moving_towards_the_other_car(frame):
+    """τ = 1.05 s: the envelope would still allow 0.5 + 0.1·1 − 0.9·0.05 = 0.555 m/s towards the car on the left,
+    but the ego's speed towards it has been ≤ 0 since ρ (the auditor's 'and stay ≤ 0'): the plan's 1 m/s to the left
+    becomes 0."""
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    planned = TrajectoryState(300.0 + 2.0 * DT, -5.25 + 1.0 * DT, 0.0, 2.0, 0.0)
+    done = guard.apply(_ego_alone(2.0), 0, frame, planned, _owing_lateral(18.95, 0.5, True, settled=True))
+    assert (done.y + 5.25) / DT == pytest.approx(0.0, abs=1e-6)
+    assert guard.counts.lat_owed == 1
 
 
 @pytest.mark.parametrize("side, towards_ego, blocked", [
@@ -96,7 +107,7 @@ def test_a_move_towards_a_car_beside_is_judged_with_each_cars_own_lateral_parame
     guard = ProperResponseGuard(ParamResolver("mobileye_human"), DT)
     planned = TrajectoryState(300.0 + 20.0 * DT, -5.25 + side * 0.3 * DT, 0.0, 20.0, 0.0)
     nothing_owed = OwedResponses(*(np.zeros(0, dtype=t) for t in (float, bool, bool, bool, bool, bool, float, object,
-                                                                   bool)))
+                                                                   bool, bool)))
     done = guard.apply(snapshot, 0, frame, planned, nothing_owed)
     assert (done.y + 5.25) / DT == pytest.approx(0.0 if blocked else side * 0.3, abs=1e-6)
     assert guard.counts.lat_predictive == int(blocked)

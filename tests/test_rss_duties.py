@@ -34,9 +34,23 @@ def test_who_must_brake_at_an_intersection_follows_the_condition_that_held_befor
     rules, priority, ahead, braking, roles = zip(*cases)
     sit = _dangerous_crossings(list(priority), list(ahead))
     rows = np.arange(len(cases))
-    duties = duties_at_threshold(sit, rows, np.array(rules, dtype=np.int8), np.ones(len(cases), dtype=bool),
-                                 np.zeros(len(cases), dtype=bool))
+    duties = duties_at_threshold(sit, rows, np.array(rules, dtype=np.int8), np.array(priority, dtype=np.int8),
+                                 np.ones(len(cases), dtype=bool), np.zeros(len(cases), dtype=bool))
     assert [tuple(map(bool, row)) for row in duties.must_brake] == list(braking)
     assert [tuple(row) for row in duties.roles] == list(roles)
     assert duties.trigger.tolist() == ["able-to-stop", "able-to-stop", "in-front", "in-front", "in-front",
                                        "no-time-overlap", "able-to-stop"]
+
+
+def test_who_yields_follows_the_priority_under_which_able_to_stop_held():
+    """A signal that changes at t_b (yellow onset: SUMO falls back to the junction's static right of way) does not
+    make the car that was let through the one that yields: b had priority while a could stop; at t_b a has it and
+    b, at the area, cannot stop. a (without priority before) brakes, b may drive on (rss.md §5)."""
+    sit = _dangerous_crossings([1, 1], [0, 0])  # a has priority now in both pairs
+    duties = duties_at_threshold(sit, np.arange(2), np.full(2, RULE_ABLE_TO_STOP, dtype=np.int8),
+                                 np.array([2, 1], dtype=np.int8), np.ones(2, dtype=bool), np.zeros(2, dtype=bool))
+    assert [tuple(map(bool, row)) for row in duties.must_brake] == [(True, False), (False, True)]
+    assert [tuple(row) for row in duties.roles] == [("yielding", "priority"), ("priority", "yielding")]
+    first_seen = duties_at_threshold(sit, np.arange(1), np.zeros(1, dtype=np.int8), np.array([2], dtype=np.int8),
+                                     np.zeros(1, dtype=bool), np.ones(1, dtype=bool))
+    assert first_seen.trigger.tolist() == ["appeared"]  # no step before: nothing to take a priority from

@@ -125,9 +125,10 @@ class ProperResponseGuard:
             side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
             t_lat = tau[owed.owed_lat]
             # The auditor's envelope with ACCEL_MARGIN kept inside both of its accelerations.
-            bound = lateral_speed_bound(owed.u0[owed.owed_lat], t_lat, rho,
-                                        float(p_e.lat_accel_max[0]) - ACCEL_MARGIN,
-                                        float(p_e.lat_brake_min[0]) + ACCEL_MARGIN)
+            bound = np.where(owed.lat_settled[owed.owed_lat], 0.0,
+                             lateral_speed_bound(owed.u0[owed.owed_lat], t_lat, rho,
+                                                 float(p_e.lat_accel_max[0]) - ACCEL_MARGIN,
+                                                 float(p_e.lat_brake_min[0]) + ACCEL_MARGIN))
             for sd, b in zip(side, bound):
                 if sd * u_plan > b:
                     c.lat_owed += int(sd * u_plan > b + COUNT_TOLERANCE)

@@ -111,6 +111,17 @@ class AuditResult:
         write_json(directory / PARAMS_FILE, self.params)
 
 
+def collision_blame(records: list[dict]) -> tuple[str, str]:
+    """(blamed, episode_key) of a collision that closed the episode ``records`` of one pair: the cars responsible
+    in any of them (';'-joined, 'none' if no car) and their episode keys (';'-joined, '' for none)."""
+    blamed = []
+    for record in records:
+        for car, side in ((record["vehicle_a"], "a"), (record["vehicle_b"], "b")):
+            if record["responsible"] in (side, "both") and car not in blamed:
+                blamed.append(car)
+    return ";".join(sorted(blamed)) or "none", ";".join(record["episode_key"] for record in records)
+
+
 class Auditor:
     """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
 
@@ -196,18 +207,12 @@ class Auditor:
 
     def _record_collision(self, c: CollisionInput) -> None:
         a, b = sorted((c.collider, c.victim))
-        record = None
+        records = []
         if a in self._uid and b in self._uid:
             key = (np.int64(self._uid[a]) << 32) | np.int64(self._uid[b])
-            # The collision ends every open episode of the pair; it is joined to the junction one if any.
-            at_junction = self._tracker.collide(int(key | INTERSECTION_KEY), c.time, c.collider, c.victim)
-            on_road = self._tracker.collide(int(key), c.time, c.collider, c.victim)
-            record = at_junction or on_road
-        if record is None:
-            blamed, episode_key = "none", ""
-        else:
-            who = {"a": [a], "b": [b], "both": [a, b], "none": []}[record["responsible"]]
-            blamed, episode_key = (";".join(who) or "none"), record["episode_key"]
+            # The collision ends every open episode of the pair (on the road and at a junction).
+            records = self._tracker.collide([int(key), int(key | INTERSECTION_KEY)], c.time, c.collider, c.victim)
+        blamed, episode_key = collision_blame(records)
         self._collisions.append({"run_id": self.run_id, "time_s": c.time, "collider": c.collider,
                                  "victim": c.victim, "sumo_type": c.kind, "blamed": blamed,
                                  "episode_key": episode_key})

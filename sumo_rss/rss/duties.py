@@ -5,7 +5,9 @@ Roads: lateral safe before → a lateral response by both; longitudinal safe bef
 car brakes at b_min, the front car must not brake harder than b_max; opposite directions: both brake at b_corr);
 both safe → both responses; a pair that appears already dangerous owes the longitudinal response unless the
 cars overlap longitudinally, then the lateral one.
-Intersections: able-to-stop held → the car(s) without priority brake, a priority car may drive on; in-front
+Intersections: able-to-stop held → the car(s) without priority under that step's priority brake (a signal that
+changes at t_b does not turn the car that was allowed through into the one that yields), a priority car may
+drive on; in-front
 held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap, or dangerous when
 first seen) both brake.
 """
@@ -40,18 +42,19 @@ def _join(*parts: np.ndarray) -> np.ndarray:
     return out
 
 
-def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
-                        appeared: np.ndarray) -> Duties:
-    """Duties of the pairs ``rows`` of ``sit`` that became dangerous now; ``prev_rules``: RULE_* bits at the
-    step before (valid where ``seen``); ``appeared``: a car of the pair entered the data this step."""
+def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, prev_priority: np.ndarray,
+                        seen: np.ndarray, appeared: np.ndarray) -> Duties:
+    """Duties of the pairs ``rows`` of ``sit`` that became dangerous now; ``prev_rules``: RULE_* bits and
+    ``prev_priority`` (as ``PairSituations.priority``) at the step before (valid where ``seen``); ``appeared``: a
+    car of the pair entered the data this step."""
     kind = sit.kind[rows]
     crossing = kind >= FIRST_INTERSECTION_CODE
     if not crossing.any():
         return _road_duties(sit, rows, prev_rules, seen, appeared)
     if crossing.all():
-        return _intersection_duties(sit, rows, prev_rules, seen, appeared)
+        return _intersection_duties(sit, rows, prev_rules, prev_priority, seen, appeared)
     road = _road_duties(sit, rows, prev_rules, seen, appeared)
-    junction = _intersection_duties(sit, rows, prev_rules, seen, appeared)
+    junction = _intersection_duties(sit, rows, prev_rules, prev_priority, seen, appeared)
     pick = crossing[:, None]
     return Duties(*(np.where(pick if getattr(road, f).ndim == 2 else crossing, getattr(junction, f), getattr(road, f))
                     for f in ("must_brake", "front_limited", "brake_correct", "owed_lat", "trigger", "roles",
@@ -81,13 +84,15 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
     return Duties(must_brake, front_limited, sit.kind[rows] == 1, owed_lat, trigger.astype(object), roles, owed)
 
 
-def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
-                         appeared: np.ndarray) -> Duties:
+def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, prev_priority: np.ndarray,
+                         seen: np.ndarray, appeared: np.ndarray) -> Duties:
     n = len(rows)
     rules = np.where(seen, prev_rules, 0)
     able = (rules & RULE_ABLE_TO_STOP) > 0
     in_front = ~able & ((rules & RULE_IN_FRONT) > 0)
-    priority = sit.priority[rows] if sit.priority is not None else np.zeros(n, dtype=np.int8)
+    # Who yields is decided by the priority under which 'able to stop' held (the step before t_b).
+    now = sit.priority[rows] if sit.priority is not None else np.zeros(n, dtype=np.int8)
+    priority = np.where(seen, prev_priority, now)
     yielding = np.column_stack([priority != 1, priority != 2])  # equal priority: both yield
     # Safe by 'in front' before t_b: the rear car brakes; if neither car is in front at t_b (they overlap on the
     # virtual line), there is no rear car and both do, as ad_rss's BrakeMin for both.

@@ -73,6 +73,7 @@ class _Episodes:
     area: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     u0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # lateral speed towards the other at t_b
+    lat_settled: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))  # ≤ 0 after ρ once
     min_lon_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
     min_lat_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
     responsible: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
@@ -108,6 +109,7 @@ class OwedResponses:
     u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
     other_id: np.ndarray  # the other car's id
     same_direction: np.ndarray  # bool: one car follows the other (same direction or merge)
+    lat_settled: np.ndarray  # bool: this car's speed towards the other has been ≤ 0 from ρ on (it must stay there)
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
@@ -135,6 +137,7 @@ class ResponsibilityTracker:
         self._open = _Episodes()
         self._prev_keys = np.zeros(0, dtype=np.int64)
         self._prev_rules = np.zeros(0, dtype=np.int8)
+        self._prev_priority = np.zeros(0, dtype=np.int8)
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._ended_now: dict[int, dict] = {}  # pair key → record of an episode that ended at the current step
@@ -159,21 +162,23 @@ class ResponsibilityTracker:
         self._ended_now = dict(zip(self._open.keys[gone].tolist(), self._close(gone, step.time, end_of_data=True)))
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
+        # 2. Compliance of both cars in every episode whose pair is still a candidate (the first judged step is the
+        # one after t_b). An episode that ends now is judged at this step too: the acceleration reported now was
+        # driven from the step before, when the pair was still dangerous.
+        if np.any(found):
+            self._check_compliance(step, sit_rows[pos], found, still_dangerous)
         self._ended_now.update(zip(self._open.keys[~still_dangerous].tolist(),
                                    self._close(~still_dangerous, step.time)))
         # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
         found, pos = _lookup(keys, self._collided)
         self._collided = self._collided[found & dangerous[pos]] if len(keys) else self._collided[:0]
-        # 2. Newly dangerous pairs open an episode at the danger threshold t_b = now.
+        # 3. Newly dangerous pairs open an episode at the danger threshold t_b = now.
         new = dangerous & ~_lookup(self._open.keys, keys)[0] & ~_lookup(self._collided, keys)[0]
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
-        # 3. Compliance of both cars in every continuing episode (the first judged step is the one after t_b).
-        if len(self._open):
-            rows = sit_rows[np.searchsorted(keys, self._open.keys)]
-            self._check_compliance(step, rows)
         self._prev_keys = keys
         self._prev_rules = sit.safe_rules[order]
+        self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
         self._last_time = step.time
 
     def open_episodes(self, vclass: str) -> tuple[np.ndarray, list[str]]:
@@ -193,23 +198,26 @@ class ResponsibilityTracker:
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
-            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES))
+            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car])
 
-    def collide(self, pair_key: int, time: float, collider: str, victim: str) -> dict | None:
-        """Close the open episode of ``pair_key`` with a collision; returns its record (None if no episode). An
-        episode that ended at this step (step 1 of :meth:`step`) is the collision's too: the pair was in danger
-        up to the contact."""
-        hit = self._open.keys == pair_key
-        if hit.any():
-            record = self._close(hit, time, collision=(collider, victim))[0]
-        else:
-            record = self._ended_now.pop(pair_key, None)
-            if record is None:
-                return None
-            record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
-                          victim=victim, ended_by="collision")
-        self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
-        return record
+    def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
+        """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
+        their records (none: the pair was in no episode). An episode that ended at this step (step 1 of
+        :meth:`step`) is the collision's too: the pair was in danger up to the contact."""
+        records = []
+        for pair_key in pair_keys:
+            hit = self._open.keys == pair_key
+            if hit.any():
+                records.append(self._close(hit, time, collision=(collider, victim))[0])
+            elif pair_key in self._ended_now:
+                record = self._ended_now.pop(pair_key)
+                record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
+                              victim=victim, ended_by="collision")
+                records.append(record)
+            else:
+                continue
+            self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
+        return records
 
     def finish(self) -> None:
         """Close every open episode at the last observed time (end of data)."""
@@ -229,8 +237,9 @@ class ResponsibilityTracker:
         # What was safe just before t_b decides the owed response (rss.md §5).
         seen, pos = _lookup(self._prev_keys, keys)
         prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
+        prev_priority = self._prev_priority[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
-        duties = duties_at_threshold(sit, rows, prev_rules, seen, appeared)
+        duties = duties_at_threshold(sit, rows, prev_rules, prev_priority, seen, appeared)
         # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
         u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
                               np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
@@ -245,7 +254,7 @@ class ResponsibilityTracker:
             must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
             owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
             area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
-            a_left=sit.a_is_left[rows], u0=u0,
+            a_left=sit.a_is_left[rows], u0=u0, lat_settled=np.zeros((n, 2), dtype=bool),
             min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
             min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
             responsible=np.zeros((n, 2), dtype=bool), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
@@ -255,13 +264,18 @@ class ResponsibilityTracker:
         merged = _Episodes.concat([self._open, fresh]) if len(self._open) else fresh
         self._open = merged.take(np.argsort(merged.keys, kind="stable"))
 
-    def _check_compliance(self, step: StepInput, rows: np.ndarray) -> None:
-        """Evaluate every owed constraint for both cars of each open episode at ``step.time``."""
+    def _check_compliance(self, step: StepInput, rows: np.ndarray, candidate: np.ndarray,
+                          in_danger: np.ndarray) -> None:
+        """Evaluate every owed constraint for both cars of each open episode at ``step.time``: those whose pair is
+        a ``candidate`` now (situation ``rows``; elsewhere ``rows`` is ignored); ``in_danger``: the pair is still
+        dangerous (its margins count)."""
         e, sit, t = self._open, step.situations, step.time
-        e.min_lon_margin = np.minimum(e.min_lon_margin, sit.lon_gap[rows] - sit.lon_d_min[rows])
-        e.min_lat_margin = np.minimum(e.min_lat_margin, sit.lat_gap[rows] - sit.lat_d_min[rows])
-        e.t_last = np.full(len(e), t)
-        judged = t > e.t_b + TIME_EPS
+        e.min_lon_margin = np.where(in_danger, np.minimum(e.min_lon_margin, sit.lon_gap[rows] - sit.lon_d_min[rows]),
+                                    e.min_lon_margin)
+        e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin, sit.lat_gap[rows] - sit.lat_d_min[rows]),
+                                    e.min_lat_margin)
+        e.t_last = np.where(candidate, t, e.t_last)
+        judged = candidate & (t > e.t_b + TIME_EPS)
         cars = np.column_stack([sit.a[rows], sit.b[rows]])  # [n, 2] snapshot rows
         p = step.params
         accel = step.accel[cars]
@@ -270,6 +284,10 @@ class ResponsibilityTracker:
         rho = p.response_time[cars]
         tau = (t - e.t_b)[:, None]
         in_response = tau <= rho + TIME_EPS
+        # The step that ends ρ inside it (ρ not a multiple of the step): its mean acceleration may be a_acc for
+        # the part before t_b + ρ and must be −b after it, so its bound is the time-weighted mix of the two.
+        dt = t - self._last_time if self._last_time is not None else 0.0
+        before = np.clip((rho - (tau - dt)) / dt, 0.0, 1.0) if dt > 0.0 else np.zeros_like(rho)
         braker = e.must_brake
         front = e.front_limited
         brake_needed = np.where(e.brake_correct[:, None], p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
@@ -282,14 +300,17 @@ class ResponsibilityTracker:
         applies[..., 0] = braker & in_response
         actual[..., 0], bound[..., 0] = accel, p.lon_accel_max[cars]
         applies[..., 1] = braker & ~in_response & moving
-        actual[..., 1], bound[..., 1] = accel, -brake_needed
+        actual[..., 1], bound[..., 1] = accel, before * p.lon_accel_max[cars] - (1.0 - before) * brake_needed
         applies[..., 2] = front
         actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
         left = np.column_stack([e.a_left, ~e.a_left])
         u = np.where(left, -v_lat, v_lat)
         applies[..., 3] = e.owed_lat[:, None]
         actual[..., 3] = u
-        bound[..., 3] = lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars])
+        # Once a car's speed towards the other is ≤ 0 from ρ on, it must stay there.
+        bound[..., 3] = np.where(e.lat_settled, 0.0,
+                                 lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars]))
+        e.lat_settled = e.lat_settled | (judged[:, None] & (tau >= rho - TIME_EPS) & (u <= 0.0))
         tolerance = np.full(actual.shape, EPS_ACCEL)
         tolerance[..., 3] = EPS_ACCEL * tau  # a velocity envelope: the acceleration tolerance, integrated
         excess = sign * (actual - bound)
