@@ -10,7 +10,8 @@ import pytest
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.cost_weights import CostWeights
 from sumo_rss.planner.behavior.evaluation import breaks_lateral_response, leader_gap_for_cost, rss_penalty
-from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, boxes_overlap, leaders_ahead, \
+from sumo_rss.boxes import boxes_overlap
+from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains

@@ -21,9 +21,10 @@ from sumo_rss import load_scenario
 from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
-from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, read_vehicle_info
+from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, overlap_contacts, read_vehicle_info
 from sumo_rss.rss.signals import SignalStates
 from sumo_rss.sim.session import Session
+from sumo_rss.sim.snapshot import WorldSnapshot
 from sumo_rss.sumo_home import sumo_tool
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
@@ -99,6 +100,53 @@ def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_s
                       vehicles=read_vehicle_info(run_dir / "routes.rou.xml", spec.net_file), run_id="crash")
     assert len(boxes.collisions) == 1 and boxes.collisions.blamed[0] == "follower"
     assert boxes.collisions.time_s[0] == pytest.approx(on.collisions.time_s[0], abs=0.1 + 1e-9)
+
+
+def test_junction_contacts_are_found_from_the_footprints_without_sumos_collision_file(tmp_path):
+    """intersection_tls with drivers that ignore their foes at the junction: SUMO reports crossing collisions
+    inside it. Without SUMO's collision file each is found from the cars' footprints, at most one step apart, with
+    the same blame (a crossing pair's gaps are distances to the conflict area, not between the cars)."""
+    scenario = tomllib.loads((SCENARIOS / "intersection_tls.toml").read_text())
+    scenario["demand"]["vtypes"]["car"]["car_follow_params"] = {
+        "jmIgnoreFoeProb": 1.0, "jmIgnoreJunctionFoeProb": 1.0, "jmIgnoreFoeSpeed": 100.0,
+        "jmDriveAfterRedTime": 100.0}
+    proc = _cli("run", str(write_scenario(tmp_path, scenario, "crash.toml")), "--duration", "30", "--out",
+                str(tmp_path / "out"), "--fcd", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run = tmp_path / "out" / "crash" / "0"
+    live = pd.read_csv(run / "collisions.csv", keep_default_na=False)
+    assert len(live) >= 2 and set(live.sumo_type) == {"junction"}
+    spec = load_scenario(run / "scenario.toml")
+    found = audit_fcd(run / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
+                      vehicles=read_vehicle_info(run / "routes.rou.xml", spec.net_file), run_id=live.run_id[0]).collisions
+    assert len(found) == len(live)
+    for contact, sumo in zip(found.itertuples(), live.itertuples()):
+        assert {contact.collider, contact.victim} == {sumo.collider, sumo.victim}
+        assert contact.time_s == pytest.approx(sumo.time_s, abs=0.1 + 1e-9)
+        assert (contact.blamed, contact.episode_key) == (sumo.blamed, sumo.episode_key)
+
+
+def test_the_rear_car_of_a_merging_pair_in_contact_is_named_the_collider():
+    """Car 'b_rear' on the acceleration lane mw_merge_0 (straight along +x, lanes 3.5 m apart), 2 m behind 'a_front'
+    on mw_merge_1 and 2 m to the left of its lane's centre: the 1.8 m wide bodies overlap by 0.3 m across and
+    2.5 m along. A merge pair whose car a is in front: b_rear is the collider (SUMO names the rear car)."""
+    net = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    lanes = np.array(["mw_merge_1", "mw_merge_0"])
+    k = net.lane_indices(lanes)
+    start = net.shapes.points[k, 0]  # both lanes start at x = 675.69 and run along +x
+    lat = np.array([0.0, 2.0])
+    zero = np.zeros(2)
+    snapshot = WorldSnapshot(
+        time=5.0, ids=np.array(["a_front", "b_rear"]), x=start[:, 0] + np.array([100.0, 98.0]),
+        y=start[:, 1] + lat, heading=zero, speed=np.full(2, 20.0), accel=zero, lat_speed=zero,
+        length=np.full(2, 4.5), width=np.full(2, 1.8), lane_id=lanes, edge_id=np.full(2, "mw_merge"),
+        lane_index=np.array([1, 0]), lane_pos=np.array([100.0, 98.0]), lat_pos=lat,
+        vclass=np.full(2, "background"), vtype=np.full(2, "car"), signals=np.zeros(2, int),
+        route_index=np.zeros(2, int))
+    pairs = Auditor(net, ParamResolver("ad_rss")).observe(snapshot)
+    assert pairs.kind.tolist() == [2] and not pairs.a_is_rear[0]  # merge; car a ('a_front') is the front car
+    (contact,) = overlap_contacts(snapshot, pairs)
+    assert (contact.collider, contact.victim, contact.kind) == ("b_rear", "a_front", "overlap")
 
 
 def _strip(src, dst, keep: set[str]) -> None:

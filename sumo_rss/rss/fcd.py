@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..boxes import boxes_overlap
 from ..errors import SumoRssError
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
@@ -23,6 +24,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from ..sumo_home import vtype_attribute_names
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
+from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations
 
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
@@ -222,7 +224,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
               run_id: str = "", signal_rule: bool = True) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
-    overlapping bounding boxes (both gaps negative) of the evaluated pairs. Signal states come from SUMO's
+    overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`)."""
     reports = read_collisions(collisions) if collisions is not None else None
@@ -240,15 +242,34 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
             new = contacts.step(reports.get(snapshot.time, []))
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind) for c in new])
             continue
-        pairs = auditor.observe(snapshot)
-        overlap = (pairs.lon_gap < 0.0) & (pairs.lat_gap < 0.0)
-        # The rear car of a same-direction pair is named the collider (SUMO's convention), else car a.
-        collider = np.where(pairs.a_is_rear | (pairs.kind != 0), pairs.a, pairs.b)[overlap]
-        victim = np.where(pairs.a_is_rear | (pairs.kind != 0), pairs.b, pairs.a)[overlap]
-        found = [CollisionEvent(snapshot.time, str(snapshot.ids[c]), str(snapshot.ids[v]), "", "", 0.0, 0.0,
-                                "overlap", "", 0.0) for c, v in zip(collider, victim)]
+        found = overlap_contacts(snapshot, auditor.observe(snapshot))
         auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
     return auditor.finish()
+
+
+def overlap_contacts(snapshot: WorldSnapshot, pairs: PairSituations) -> list[CollisionEvent]:
+    """The evaluated ``pairs`` whose bounding boxes overlap (:func:`_in_contact`), as collision events of type
+    'overlap'. The rear car of a pair going the same way (also a merge) is named the collider (SUMO's convention),
+    else car a."""
+    overlap = _in_contact(snapshot, pairs)
+    a_named = pairs.a_is_rear | ~np.isin(pairs.kind, SAME_DIRECTION_CODES)
+    collider = np.where(a_named, pairs.a, pairs.b)[overlap]
+    victim = np.where(a_named, pairs.b, pairs.a)[overlap]
+    return [CollisionEvent(snapshot.time, str(snapshot.ids[c]), str(snapshot.ids[v]), "", "", 0.0, 0.0, "overlap",
+                           "", 0.0) for c, v in zip(collider, victim)]
+
+
+def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations) -> np.ndarray:
+    """Per evaluated pair, whether the two bounding boxes overlap: both gaps negative for a road pair (lane frame);
+    the footprints themselves for a pair crossing in a junction (its gaps are distances to the conflict area)."""
+    overlap = (pairs.lon_gap < 0.0) & (pairs.lat_gap < 0.0)
+    crossing = np.flatnonzero(pairs.kind >= FIRST_INTERSECTION_CODE)
+    if crossing.size:
+        x, y = snapshot.centres()
+        a, b = pairs.a[crossing], pairs.b[crossing]
+        overlap[crossing] = boxes_overlap(x[a], y[a], snapshot.heading[a], snapshot.length[a], snapshot.width[a],
+                                          x[b], y[b], snapshot.heading[b], snapshot.length[b], snapshot.width[b])
+    return overlap
 
 
 def _numbers(rows: list[dict[str, str]], name: str, where: str) -> np.ndarray:
