@@ -6,6 +6,7 @@ the file, the dotted key path and the expected form.
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import asdict, dataclass, field, replace
@@ -181,6 +182,8 @@ class ScenarioSpec:
                 if flow.end_s is None and duration_s <= flow.begin_s:
                     raise ScenarioError(self.source, key, f"expected a number > the begin_s of flow "
                                                           f"{flow.id!r} ({flow.begin_s:g})", duration_s)
+            if not _whole_steps(duration_s, self.step_s):
+                raise ScenarioError(self.source, key, _steps_expected(duration_s, self.step_s), duration_s)
             spec = replace(spec, duration_s=float(duration_s))
         return spec
 
@@ -233,6 +236,19 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
     return parse_scenario(read_toml(path, "scenario"), path)
 
 
+def _whole_steps(duration: float, step: float) -> bool:
+    """Whether ``duration`` [s] is a whole number of steps of ``step`` [s] (up to float rounding)."""
+    steps = duration / step
+    return abs(steps - round(steps)) <= 1e-6 * max(1.0, steps)
+
+
+def _steps_expected(duration: float, step: float) -> str:
+    """The error text for a duration [s] that is not a whole number of steps [s]: the two nearest that are."""
+    below = math.floor(duration / step) * step
+    return (f"expected a whole number of steps of step_s = {step:g} s (the run stops at a step), e.g. "
+            f"{below:.6g} or {below + step:.6g}")
+
+
 def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     if isinstance(data.get("batch"), dict):
         raise ScenarioError(path, "batch", "expected a scenario file, not a batch file ([batch] table): run it with "
@@ -245,6 +261,8 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     step = top.number("step_s", 0.1, min=0.001, max=1.0)
     if abs(step * 1000.0 - round(step * 1000.0)) > 1e-6:
         raise top.error("step_s", "expected a whole number of milliseconds (SUMO rounds its step to 1 ms)", step)
+    if not _whole_steps(duration, step):
+        raise top.error("duration_s", _steps_expected(duration, step), duration)
     seed = top.integer("seed", 0, min=0, max=MAX_SEED)
     sumo = _read_sumo(top.table("sumo"))
     demand = _read_demand(top.table("demand"), topology, duration)

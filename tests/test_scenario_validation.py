@@ -33,6 +33,8 @@ BROKEN = [
     ("wrong type", lambda d: _set(d, "duration_s", "long"), "duration_s", "expected a number"),
     ("out of range step", lambda d: _set(d, "step_s", 5.0), "step_s", "in [0.001, 1]"),
     ("step not in whole ms", lambda d: _set(d, "step_s", 0.0125), "step_s", "a whole number of milliseconds"),
+    ("duration between steps", lambda d: _set(d, "duration_s", 30.45), "duration_s",
+     "a whole number of steps of step_s = 0.1 s (the run stops at a step), e.g. 30.4 or 30.5"),
     ("missing network", lambda d: _delete(d, "network"), "network", "required key is missing"),
     ("unknown network", lambda d: _set(d, "network", "autobahn"), "network", "expected a network name"),
     ("missing net file", lambda d: _set(d, "network", "nowhere/x.net.xml"), "network", "existing .net.xml"),
@@ -193,6 +195,8 @@ def test_a_vtype_with_probability_0_serves_only_the_flows_that_name_it(tmp_path,
     ("1e12", "{path}: duration_s override (e.g. --duration): expected a number <= 604800 (7 days), "
              "got 1000000000000.0"),
     ("0.5", "{path}: duration_s override (e.g. --duration): expected a number > ego.depart_s (1), got 0.5"),
+    ("30.55", "{path}: duration_s override (e.g. --duration): expected a whole number of steps of step_s = 0.1 s "
+              "(the run stops at a step), e.g. 30.5 or 30.6, got 30.55"),  # it ran 30.6 s (30.45: 30.4 s)
 ])
 def test_a_bad_duration_option_is_refused_naming_the_option(tmp_path, valid_scenario, duration, message):
     """The scenario file is fine (its duration_s is 30 s): the error names the override, not the file's key."""

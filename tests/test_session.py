@@ -177,10 +177,11 @@ def test_snapshot_values_are_rounded_as_sumo_writes_them():
 def test_the_route_file_and_command_line_keep_every_digit_of_a_time(tmp_path, valid_scenario):
     """Six significant digits wrote an ego departure at 12345.65 s as 12345.6 (0.05 s early)."""
     valid_scenario["duration_s"] = 20000.25
+    valid_scenario["step_s"] = 0.05  # the duration is a whole number of steps
     valid_scenario["ego"]["depart_s"] = 12345.65
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))
     routes = ET.parse(write_route_file(spec, tmp_path / "routes.rou.xml")).getroot()
     assert routes.find("vehicle[@id='ego']").get("depart") == "12345.65"
     assert routes.find("flow").get("end") == "20000.25"
     args = sumo_arguments(spec, tmp_path / "routes.rou.xml")
-    assert args[args.index("--end") + 1] == "20000.25" and args[args.index("--step-length") + 1] == "0.1"
+    assert args[args.index("--end") + 1] == "20000.25" and args[args.index("--step-length") + 1] == "0.05"

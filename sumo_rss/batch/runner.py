@@ -146,7 +146,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                     on_step(session.steps * spec.step_s)
         audit = auditor.finish()
         wall = time.perf_counter() - started
-        simulated = session.steps * spec.step_s
+        simulated = round(session.steps * spec.step_s, 3)  # steps are whole ms: no float residue (30.400000000000002)
         audit.to_csv(work)
         planner = report() if report is not None else None
         if planner is not None:
