@@ -11,7 +11,7 @@ from conftest import NETWORKS
 from sumo_rss.planner.behavior.cost_weights import CostWeights
 from sumo_rss.planner.behavior.evaluation import breaks_lateral_response, leader_gap_for_cost, rss_penalty
 from sumo_rss.boxes import boxes_overlap
-from sumo_rss.planner.behavior.forward_sim import Rollouts, SimSettings, Vehicles, leaders_ahead, \
+from sumo_rss.planner.behavior.forward_sim import JunctionArea, Rollouts, SimSettings, Vehicles, leaders_ahead, \
     prefix_tree, simulate, step_times
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
@@ -462,6 +462,28 @@ def test_a_stop_line_is_approached_with_the_idm_not_held_at_an_rss_distance(high
     sim = simulate(frame, vehicles, rollouts, (1.0,) * 10, SimSettings(), RssParams(), p, ego_stop_s=stop_s)
     front = sim.s[0, :, 0] + 2.25
     assert front.max() <= stop_s and front[-1] > stop_s - 5.0 and sim.speed[0, -1, 0] < 1.0
+
+
+@pytest.mark.parametrize("beyond", [0.5, 2.0, 10.0])
+def test_before_a_junction_the_ego_stays_able_to_stop_ahead_of_its_conflict_area(highway, beyond):
+    """A stop line 80 m ahead of the ego's front bumper (15 m/s) and the junction's first conflict area ``beyond``
+    m past it. ad_rss: D(v) = v + 1.75 + (v + 3.5)²/8 m (ρ 1 s, a_acc 3.5, b_min 4), D(0) = 3.28 m. All the way,
+    the ego's distance to the area stays above D(v) (rss.md §4's able-to-stop, which a car creeping up to the line
+    broke: every creep was a danger episode with the crossing traffic). It comes to rest IDM's s0 = 2 m short of
+    D(0) + the stop point's own margin, and never past the stop point."""
+    _, frame = highway
+    vehicles = _vehicles([100.0, 400.0], [0.0, 0.0], [15.0, 25.0])
+    p = RssParams()
+    rollouts = replace(_keep(1, 2, layers=16, v0=20.0), agent_v0=np.array([0.0, 25.0]))
+    stop_s = 100.0 + 2.25 + 80.0
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 16, SimSettings(), p, RssParamArrays.stack([p] * 2),
+                   ego_stop_s=stop_s, junction_area=JunctionArea(beyond, RssParamArrays.stack([p])))
+    front, v = sim.s[0, :, 0] + 2.25, sim.speed[0, :, 0]
+    to_area = stop_s + beyond - front
+    assert np.all(to_area > v + 1.75 + (v + 3.5) ** 2 / 8.0)
+    assert front.max() <= stop_s and v[-1] < 0.1
+    rest = max(2.0 + 1.75 + 3.5 ** 2 / 8.0 - beyond, 2.0)  # s0 + max(D(0) − beyond, 0) before the stop point
+    assert stop_s - front[-1] == pytest.approx(rest, abs=0.5)
 
 
 def test_each_layer_ends_with_the_leader_on_the_lane_that_layer_tracked(highway):

@@ -63,6 +63,11 @@ def test_red_stops_the_ego_at_the_line_and_green_does_not():
     red = _stop(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "r")), net, junctions)
     assert red.reason == "red" and red.distance == pytest.approx(50.0 - STOP_MARGIN, abs=1e-6)
     assert _stop(_snapshot(net, [ego], _signal(net, junctions, "S_in_0", "N_out", "G")), net, junctions) == NO_STOP
+    # The first conflict area of the ego's way (straight on from S_in_0) begins this far past where it stops.
+    own = next(k for k in junctions.lane_links[int(net.lane_indices(["S_in_0"])[0])]
+               if k >= 0 and junctions.link_to_edge[k] == net.edge_indices(["N_out"])[0])
+    first_area = junctions.area_start[own, junctions.area_index[own] >= 0].min()
+    assert red.area_beyond == pytest.approx(STOP_MARGIN + first_area) and 0.0 <= first_area < 15.0
 
 
 def test_yellow_stops_the_ego_only_where_it_can_stop_at_b_min_and_red_only_where_it_can_at_b_max():

@@ -30,7 +30,7 @@ from .behavior.cfb import branch_scenarios, uncertain_agents
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import Navigation, evaluate
-from .behavior.forward_sim import Rollouts, SimResult, SimSettings, Vehicles, simulate
+from .behavior.forward_sim import JunctionArea, Rollouts, SimResult, SimSettings, Vehicles, simulate
 from .behavior.intention import rule_belief
 from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
@@ -152,13 +152,14 @@ class EpsilonPlanner:
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
         ego_params = _row(params, 0)
-        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params,
-                         RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))]))
+        ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
+        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
         cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
+        area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
-                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap)
+                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap, area)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:

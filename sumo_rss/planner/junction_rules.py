@@ -41,10 +41,13 @@ RED, YELLOW = "rRs", "yYu"  # SUMO signal characters that stop the ego
 
 @dataclass(frozen=True)
 class StopLine:
-    """``distance`` [m] from the ego's front bumper to where it must stop (inf: drive on), and why."""
+    """``distance`` [m] from the ego's front bumper to where it must stop (inf: drive on), and why;
+    ``area_beyond`` [m]: how far past that point the first conflict area of the ego's way through the junction
+    begins (inf: none), where RSS's "able to stop" is judged."""
 
     distance: float
     reason: str  # 'red' | 'yellow' | 'yield' | 'rss' | '' (none)
+    area_beyond: float = np.inf
 
 
 NO_STOP = StopLine(np.inf, "")
@@ -72,6 +75,8 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     distance = -float(pos[mine[0]]) - STOP_MARGIN
     if distance > STOP_RANGE:
         return NO_STOP
+    conflicting = junctions.area_index[own] >= 0
+    beyond = STOP_MARGIN + float(junctions.area_start[own, conflicting].min(initial=np.inf))
     v = float(snapshot.speed[ego])
     if distance < v * v / (2.0 * b_max):  # too late to stop at the line: committed
         return NO_STOP
@@ -80,9 +85,9 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     if tls and snapshot.tls_states and tls in snapshot.tls_states:
         state = snapshot.tls_states[tls][junctions.link_tls_index[own]]
         if state in RED:
-            return StopLine(distance, "red")
+            return StopLine(distance, "red", beyond)
         if state in YELLOW and distance >= v * v / (2.0 * b_min):
-            return StopLine(distance, "yellow")
+            return StopLine(distance, "yellow", beyond)
     foes = np.flatnonzero((rows != ego) & (junctions.area_index[own, link] >= 0))  # entries on conflicting links
     if foes.size == 0:
         return NO_STOP
@@ -98,7 +103,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     clear = -ego_pos + float(np.max(junctions.area_end[own, fl])) + float(snapshot.length[ego])
     t_clear = _time_to_cover(v, clear, CLEAR_ACCEL)
     if np.any(prioritised & (inside_area | (arriving & (t_foe < t_clear + YIELD_MARGIN)))):
-        return StopLine(distance, "yield")
+        return StopLine(distance, "yield", beyond)
     # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
     # virtual line now without being able to stop before the area: once the ego closes in, the ego must brake.
     ego_now = params.take(np.array([ego]))
@@ -114,7 +119,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
                                 priority[w], junctions, ego_now if ego_moving is None else ego_moving, params)
         on_way = area_distances(junctions, own, fl[w], x, float(snapshot.length[ego]))[1] > 0.0  # not yet left it
         if np.any(on_way & ~crossing.safe):
-            return StopLine(distance, "rss")
+            return StopLine(distance, "rss", beyond)
     return NO_STOP
 
 

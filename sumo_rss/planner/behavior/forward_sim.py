@@ -97,6 +97,17 @@ class Rollouts:
 
 
 @dataclass(frozen=True, eq=False)
+class JunctionArea:
+    """The first conflict area of the ego's way through a junction, ``beyond`` [m] past its stop point. While it
+    approaches the stop, the ego stays able to stop before the area by RSS (D(v) + λ short of it, rss.md §4, with
+    ``params``: its RSS parameters [1] while moving), as it keeps the RSS distance behind a car: a car creeping to
+    a stop line that is nearer the area than D(0) would owe braking to every car with priority there."""
+
+    beyond: float
+    params: Any
+
+
+@dataclass(frozen=True, eq=False)
 class SimResult:
     """Trajectories at the sample times ``t`` (relative to now, t[0] = 0): arrays [R, T+1, n]."""
 
@@ -174,13 +185,15 @@ def following_distance(v: Any, v_lead: Any, rss_ego: Any, front_worst: Any, held
 
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
-             ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None) -> SimResult:
+             ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None,
+             junction_area: JunctionArea | None = None) -> SimResult:
     """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
     RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier; ``ego_stop_s`` [m] is a
     stop line for the ego's front bumper (a stopped leader there: a red light or a yield line). ``cut_in_gap``
     [n] [m]: per car, a gap the ego keeps to it in place of the RSS distance where that is shorter (inf: none): a
     car that cut in, which the ego owes no longitudinal braking, is followed at the gap it left rather than
-    braked for at once. Rollouts that share a prefix of the tree are simulated once until they branch
+    braked for at once. ``junction_area``: the conflict area past the stop line, which the ego approaching the
+    line stays able to stop before. Rollouts that share a prefix of the tree are simulated once until they branch
     (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
@@ -328,6 +341,11 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                 held = held_gap[lead_of_rows[behind_car]]
             following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
                                                        held)
+        if junction_area is not None:  # the ego behind its stop line: able to stop before the area beyond it
+            at_stop = (rows % n == 0) & ~free & (gaps == (ego_stop_s - s[:, 0] - 0.5 * length[0])[rows // n])
+            p = junction_area.params
+            following[at_stop] = np.maximum(following[at_stop], formulas.lon_reach(v_rows[at_stop], p, p.lon_brake_min)
+                                            + p.min_lon_gap - junction_area.beyond)
         cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
                                 np.where(free, NO_LEADER_GAP + NO_LEADER_GAP * v_rows, gaps), IdmParams(*params), dt,
                                 following)
