@@ -20,7 +20,7 @@ from sumo_rss.batch.orchestrator import _BatchLock, run_batch
 from sumo_rss.batch.runner import run_one
 from sumo_rss.batch.spec import BatchSpec, Task, load_batch
 from sumo_rss.errors import SumoRssError
-from sumo_rss.report.html import write_report
+from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
 from sumo_rss.report.summary import read_batch_csv, responsibility_category, responsibility_table
 
 AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", "ego_trace.csv")
@@ -317,3 +317,24 @@ def test_report_on_a_damaged_batch_folder_names_the_file_and_what_is_wrong(tmp_p
         (tmp_path / "batch_summary.csv").write_text(content)
     with pytest.raises(SumoRssError, match=message):
         write_report(tmp_path)
+
+
+def test_the_ego_speed_plot_takes_the_lowest_seed_whose_ego_was_on_the_road(tmp_path):
+    """Seed 0's ego never got on the road (its trace has a header only); seed 1's did: the report plots seed 1,
+    not nothing. A failed seed 2 is not looked at."""
+    header = "time_s,x_m,y_m,speed_ms,accel_ms2,lane_id,lane_pos_m,lat_pos_m\n"
+    for seed, rows in ((0, ""), (1, "30.000000,1.0,2.0,20.000000,0.0,hw0_1,20.0,0.0\n")):
+        (tmp_path / "hw" / str(seed)).mkdir(parents=True)
+        (tmp_path / "hw" / str(seed) / "ego_trace.csv").write_text(header + rows)
+    summary = pd.DataFrame({"run_id": ["hw/0", "hw/1", "hw/2"], "scenario": "hw", "variant": "", "seed": [0, 1, 2],
+                            "status": ["ok", "ok", "failed"]})
+    traces = ego_traces(tmp_path, summary)
+    assert list(traces) == ["hw seed 1"] and traces["hw seed 1"].speed_ms.tolist() == [20.0]
+
+
+def test_the_runs_table_prints_three_decimals_also_next_to_a_failed_run(tmp_path):
+    """A failed run's empty cells made the number columns text, printed with all their decimals."""
+    summary = pd.DataFrame({"run_id": ["hw/0", "hw/1"], "status": ["ok", "failed"],
+                            "real_time_factor": ["13.456789", ""], "error": ["", "Traceback ..."]})
+    shown = _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}", na_rep="")
+    assert "13.457" in shown and "13.456789" not in shown and "Traceback ..." in shown

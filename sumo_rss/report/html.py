@@ -76,16 +76,16 @@ def longest_traced_episode(episodes: pd.DataFrame, states: pd.DataFrame) -> pd.S
 
 
 def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame]:
-    """The ego trace of the first successful seed of every scenario variant."""
+    """The ego trace of the lowest successful seed of every scenario variant whose ego was on the road."""
     traces = {}
     ok = summary[summary.status == "ok"]
     for (scenario, variant), group in ok.groupby(["scenario", "variant"], sort=True):
-        run_id = group.sort_values("seed").run_id.iloc[0]
-        path = batch_dir / run_id / "ego_trace.csv"
-        if path.is_file():
-            trace = pd.read_csv(path)
-            if not trace.empty:
-                traces[f"{scenario}{' [' + variant + ']' if variant else ''} seed {group.seed.min()}"] = trace
+        for run in group.sort_values("seed").itertuples():
+            path = batch_dir / run.run_id / "ego_trace.csv"
+            trace = pd.read_csv(path) if path.is_file() else None
+            if trace is not None and not trace.empty:
+                traces[f"{scenario}{' [' + variant + ']' if variant else ''} seed {run.seed}"] = trace
+                break
     return traces
 
 
@@ -112,5 +112,17 @@ def _page(batch_dir: Path, summary: pd.DataFrame, responsibility: pd.DataFrame, 
             parts.append(f"<img alt='{name}' src='data:image/png;base64,{images[name]}'>")
     if not violations.empty:
         parts += ["<h3>Violations table</h3>", violations.to_html()]
-    parts += ["<h2>Runs</h2>", summary.to_html(index=False, float_format=lambda v: f"{v:.3f}"), "</body></html>"]
+    parts += ["<h2>Runs</h2>", _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}",
+                                                                    na_rep=""), "</body></html>"]
     return "\n".join(parts)
+
+
+def _numbers_as_numbers(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with every column whose non-empty cells are all numbers read as numbers: a failed run's empty
+    cells made its column text, printed with all 6 decimals."""
+    def column(values: pd.Series) -> pd.Series:
+        if pd.api.types.is_numeric_dtype(values) or pd.api.types.is_bool_dtype(values):
+            return values
+        numbers = pd.to_numeric(values.where(values != ""), errors="coerce")
+        return numbers if numbers.notna().sum() == (values != "").sum() else values
+    return table.apply(column)
