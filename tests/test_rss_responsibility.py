@@ -122,3 +122,20 @@ def test_a_collision_that_closes_a_road_and_a_junction_episode_blames_whoever_ei
     assert collision_blame(records) == ("b", "a|b|1;a|b|x1")
     assert collision_blame([]) == ("none", "")
     assert tracker.collide([int(PAIR)], 0.3, "a", "b") == []  # nothing open any more
+
+
+def test_after_a_contact_the_model_did_not_see_coming_no_episode_opens_while_the_cars_stay_in_contact():
+    """The pair was safe when SUMO reported the contact (no episode: blamed none). The cars stay overlapped and the
+    pair dangerous for a while (SUMO's collision action 'warn'); a new episode then would judge what follows the
+    contact, here blaming a that keeps its speed. None opens until the pair is safe once; then episodes count
+    again."""
+    tracker = ResponsibilityTracker()
+    _step(tracker, 0.0, _pair(True, False))
+    _step(tracker, 0.1, _pair(True, False))
+    assert tracker.collide([int(PAIR)], 0.1, "a", "b") == []
+    for k in range(2, 20):
+        _step(tracker, round(k * DT, 10), _pair(False, False))
+    _step(tracker, 2.0, _pair(True, False))
+    _step(tracker, 2.1, _pair(False, False))
+    tracker.finish()
+    assert [(e["t_b_s"], e["episode_index"]) for e in tracker.episode_records] == [(2.1, 1)]

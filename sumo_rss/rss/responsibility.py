@@ -203,7 +203,8 @@ class ResponsibilityTracker:
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
         their records (none: the pair was in no episode). An episode that ended at this step (step 1 of
-        :meth:`step`) is the collision's too: the pair was in danger up to the contact."""
+        :meth:`step`) is the collision's too: the pair was in danger up to the contact. Either way no new episode
+        of the pair opens until it is safe once: cars left in contact are not judged for what follows it."""
         records = []
         for pair_key in pair_keys:
             hit = self._open.keys == pair_key
@@ -214,9 +215,7 @@ class ResponsibilityTracker:
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
                 records.append(record)
-            else:
-                continue
-            self._collided = np.union1d(self._collided, [pair_key]).astype(np.int64)
+        self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
         return records
 
     def finish(self) -> None:
