@@ -160,7 +160,11 @@ def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.nda
     prefix of every rollout."""
     base = np.column_stack([rollouts.ego_v0, rollouts.ego_spacing_scale, rollouts.ego_backup,
                             rollouts.agent_chain[:, 1:]]).astype(float)
-    code = np.unique(base, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+    # Rank of each row among the distinct rows, in lexicographic order (np.unique(axis=0)'s inverse, ~8x faster).
+    order = np.lexsort(base.T[::-1])
+    ordered = base[order]
+    code = np.empty(base.shape[0], dtype=np.int64)
+    code[order] = np.cumsum(np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]) - 1
     tree, previous = [], np.zeros(base.shape[0], dtype=np.intp)
     for layer in range(rollouts.ego_chain.shape[1]):
         code = code * (LEFT + 1) + rollouts.ego_chain[:, layer]  # the prefix up to this layer, as one integer
@@ -212,6 +216,10 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     if cut_in_gap is not None:
         held_gap[:n] = cut_in_gap
     holding = bool(np.any(np.isfinite(held_gap)))
+    # Per rollout: desired speeds [R, n] and IDM parameters [fields, R, n] (the ego's s0 and T scaled per policy).
+    v0_of_rollout = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (len(rollouts.ego_v0), 1))
+    v0_of_rollout[:, 0] = rollouts.ego_v0
+    idm_of_rollout = _idm_per_rollout(agent_idm, rollouts.ego_spacing_scale, n)
     state = BicycleState(*(np.asarray(a, dtype=float)[None, :] for a in (
         vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature)))
     # Per layer: the prefix of every rollout, and the samples of its prefixes: [samples, 5, G, n] (s, d, heading,
@@ -238,12 +246,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             tracked = rollouts.agent_chain[first].copy()
             tracked[:, 0] = rollouts.ego_chain[first, layer]
             tracked_cells = tracked * (G * n) + np.arange(G * n).reshape(G, n)  # [G, n] into flat [3, G, n]
-            v0 = np.tile(np.asarray(rollouts.agent_v0, dtype=float), (G, 1))
-            v0[:, 0] = rollouts.ego_v0[first]
-            scale = np.ones((G, n))
-            scale[:, 0] = rollouts.ego_spacing_scale[first]
-            idm = replace(agent_idm, s0=agent_idm.s0[None, :] * scale, headway=agent_idm.headway[None, :] * scale)
-            idm_flat, ego_flat = _flat_idm(idm, G, n), np.arange(G) * n
+            v0 = v0_of_rollout[first]
+            idm = IdmParams(*idm_of_rollout[:, first])  # [G, n] fields
+            idm_flat, ego_flat = idm_of_rollout[:, first].reshape(len(_IDM_FIELDS), G * n), np.arange(G) * n
             layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)),
                                     np.full((samples[layer], 6, G), np.inf)))
             # This step is also the last sample of the layer before: the ego's leader there is the one on the lane
@@ -378,8 +383,11 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         lane_slope = slope_reached
     # Every rollout's samples: each layer's samples of its prefix (one gather per layer), time-major, returned as
     # [R, T+1, ...] views.
-    vehicle_samples = np.concatenate([samples[:, :, inverse] for inverse, samples, _ in layers_recorded])
-    ego_samples = np.concatenate([samples[:, :, inverse] for inverse, _, samples in layers_recorded])
+    vehicle_samples = np.empty((n_steps + 1, 5, len(rollouts.ego_v0), n))
+    ego_samples = np.empty((n_steps + 1, 6, len(rollouts.ego_v0)))
+    for (inverse, vehicles_at, ego_at), start, count in zip(layers_recorded, first_sample, samples):
+        np.take(vehicles_at, inverse, axis=2, out=vehicle_samples[start:start + count])
+        np.take(ego_at, inverse, axis=2, out=ego_samples[start:start + count])
     s, d, heading, speed, chain = vehicle_samples.transpose(1, 2, 0, 3)
     ego_accel, ego_curvature, lead_gap, lead_speed, lead_held_gap, lead_is_car = ego_samples.transpose(1, 2, 0)
     return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid[inverse], lead_gap, lead_speed,
@@ -440,10 +448,13 @@ def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agen
     return np.maximum(settings.agent_radius, reach + 0.5 * widest_agent)
 
 
-def _flat_idm(idm: IdmParams, G: int, n: int) -> np.ndarray:
-    """Per-vehicle IDM parameters as one [fields, G·n] array (fields in IdmParams' order; row-major over rollouts
-    and vehicles)."""
-    return np.stack([np.broadcast_to(np.asarray(getattr(idm, name), dtype=float), (G, n)).ravel()
+def _idm_per_rollout(idm: IdmParams, ego_spacing_scale: np.ndarray, n: int) -> np.ndarray:
+    """Per-vehicle IDM parameters ``idm`` ([n] fields) for every rollout as one [fields, R, n] array (fields in
+    IdmParams' order), the ego's s0 and T times its rollout's ``ego_spacing_scale`` [R]."""
+    scale = np.ones((ego_spacing_scale.shape[0], n))
+    scale[:, 0] = ego_spacing_scale
+    scaled = replace(idm, s0=idm.s0[None, :] * scale, headway=idm.headway[None, :] * scale)
+    return np.stack([np.broadcast_to(np.asarray(getattr(scaled, name), dtype=float), scale.shape)
                      for name in _IDM_FIELDS])
 
 
