@@ -1,6 +1,7 @@
 """Pairs across chained edges are judged in a lane-based frame: a car driving straight along its own lane has no
 lateral speed and no lateral offset towards a car ahead on the next edge, however the road bends between them
-(highway: hw0 is straight, hw1 a 875 m curve, hw2 straight again; lanes 3.5 m wide, cars 4.5 m x 1.8 m)."""
+(highway: hw0 is straight, hw1 a 875 m curve, hw2 straight again; lanes 3.5 m wide, cars 4.5 m x 1.8 m), also
+through a turn at a junction, and positions along a curved edge are SUMO's lane positions."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,32 +19,37 @@ NETWORKS = Path(__file__).resolve().parents[1] / "networks"
 LENGTH, WIDTH = 4.5, 1.8  # [m]
 
 
-def _front_bumper(net: RoadNetwork, lane_id: str, s: float) -> tuple[float, float, float]:
-    """(x, y, heading) of the point ``s`` [m] along a lane's centre line."""
+def _front_bumper(net: RoadNetwork, lane_id: str, pos: float) -> tuple[float, float, float]:
+    """(x, y, heading) of SUMO's lane position ``pos`` [m] on a lane: as SUMO places it, ``pos`` scaled from the
+    lane's length (the edge's) to its shape's (the lanes of the curved hw1 differ: 876.07 / 874.61 / 873.14 m)."""
     k = int(net.lane_indices([lane_id])[0])
     count = int(net.shapes.count[k])
     points, cum = net.shapes.points[k, :count], net.shapes.cumulative[k, :count]
+    s = pos * cum[-1] / net.lane_length[k]
     seg = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, count - 2))
     direction = points[seg + 1] - points[seg]
     x, y = points[seg] + direction * (s - cum[seg]) / np.linalg.norm(direction)
     return float(x), float(y), float(np.arctan2(direction[1], direction[0]))
 
 
-def _pair(net: RoadNetwork, cars: list[tuple[str, str, float, float]]):
-    """Evaluate two cars (id, lane, front-bumper s [m], speed [m/s]) driving straight along their lanes."""
-    poses = [_front_bumper(net, lane, s) for _, lane, s, _ in cars]
+def _pair(net: RoadNetwork, cars: list[tuple], routes: bool = True):
+    """Evaluate cars (id, lane, SUMO lane position of the front bumper [m], speed [m/s][, route]) driving straight
+    along their lanes (route: hw0-hw1-hw2 unless given; ``routes=False``: routes unknown)."""
+    poses = [_front_bumper(net, c[1], c[2]) for c in cars]
     n = len(cars)
     zero = np.zeros(n)
     lanes = np.array([c[1] for c in cars])
+    edges = [lane.rsplit("_", 1)[0] for lane in lanes]
+    route = [c[4] if len(c) > 4 else ("hw0", "hw1", "hw2") for c in cars]
     snapshot = WorldSnapshot(
         time=0.0, ids=np.array([c[0] for c in cars]), x=np.array([p[0] for p in poses]),
         y=np.array([p[1] for p in poses]), heading=np.array([p[2] for p in poses]),
         speed=np.array([c[3] for c in cars]), accel=zero, lat_speed=zero, length=np.full(n, LENGTH),
-        width=np.full(n, WIDTH), lane_id=lanes, edge_id=np.array([lane.rsplit("_", 1)[0] for lane in lanes]),
+        width=np.full(n, WIDTH), lane_id=lanes, edge_id=np.array(edges),
         lane_index=np.array([int(lane.rsplit("_", 1)[1]) for lane in lanes]), lane_pos=np.array([c[2] for c in cars]),
         lat_pos=zero, vclass=np.array(["background"] * n), vtype=np.array(["car"] * n), signals=np.zeros(n, int),
-        route_index=np.array([["hw0", "hw1", "hw2"].index(lane.rsplit("_", 1)[0]) for lane in lanes]),
-        route_edges=(("hw0", "hw1", "hw2"),) * n)
+        route_index=np.array([r.index(e) if e in r else -1 for r, e in zip(route, edges)]),
+        route_edges=tuple(route) if routes else None)
     params = RssParamArrays.stack([preset_params("ad_rss", "background")] * n)
     frame = vehicle_frame(snapshot, net, params, RouteTable(net).remaining(snapshot))
     return evaluate(snapshot, frame, net)
@@ -66,3 +72,49 @@ def test_a_car_deep_in_the_curve_is_placed_along_the_lanes_not_on_the_straight_e
     hw1_to_hw2 = float(net.edge_distance[net.edge_indices(["hw1"])[0], net.edge_indices(["hw2"])[0]])
     internal = hw1_to_hw2 - float(net.edge_length[net.edge_indices(["hw1"])[0]])
     assert pairs.lon_gap[0] == pytest.approx(120.0 + internal + 30.0 - LENGTH, abs=0.5)
+
+
+def test_cars_side_by_side_on_the_curve_overlap_fully():
+    """SUMO places lane position 800 of the three hw1 lanes side by side (shape distances 801.34 / 799.99 /
+    798.65 m): each pair overlaps by a whole car length (it read -3.16 / -1.82 m from the shapes' lengths)."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    pairs = _pair(net, [("a", "hw1_0", 800.0, 30.0), ("b", "hw1_1", 800.0, 30.0), ("c", "hw1_2", 800.0, 30.0)])
+    assert pairs.lon_gap.tolist() == pytest.approx([-LENGTH] * 3, abs=0.01)
+
+
+INTERSECTION_TLS = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+
+
+@pytest.mark.parametrize("rear_lane, front_lane, route", [
+    ("N_in_1", "E_out_1", ("N_in", "E_out")),  # a left turn: the rear car's lane leads on to the front car's
+    ("N_in_0", "W_out_0", ("N_in", "W_out")),  # a right turn
+])
+def test_a_car_following_another_through_a_turn_is_in_its_lane(rear_lane, front_lane, route):
+    """The rear car 10 m before the line at 10 m/s, the front car 5 m past the junction at 2 m/s, both turning
+    the same way: one lane all along, so the bodies overlap across it (the end of the rear car's lane projected
+    onto the front lane's straight extension read it 10.2 m (left) / 3.8 m (right) beside it, laterally safe). The
+    gap runs along the lanes through the junction; shorter than d_min = 10 + 1.75 + 13.5²/8 − 2²/16 = 34.28 m:
+    dangerous."""
+    net = RoadNetwork.from_file(INTERSECTION_TLS)
+    rear = int(net.lane_indices([rear_lane])[0])
+    pairs = _pair(net, [("a", front_lane, 5.0, 2.0, route), ("b", rear_lane, net.lane_length[rear] - 10.0, 10.0, route)])
+    through = net.edge_distance[net.lane_edge[rear], net.edge_indices([front_lane.rsplit("_", 1)[0]])[0]] - \
+        net.lane_length[rear]
+    assert len(pairs) == 1 and pairs.kind[0] == 0
+    assert pairs.lat_gap[0] == pytest.approx(-WIDTH, abs=0.01)
+    assert pairs.lon_gap[0] == pytest.approx(10.0 + through + 5.0 - LENGTH, abs=0.1)
+    assert pairs.lon_d_min[0] == pytest.approx(34.28, abs=0.01) and pairs.dangerous[0]
+
+
+@pytest.mark.parametrize("routes", [True, False])
+def test_a_car_behind_a_turning_car_in_the_junction_follows_it_whichever_way_it_goes(routes):
+    """intersection_priority: a stands 5 m into its left turn (:J_8_0, from S_in_0); b, going straight, is 6 m
+    before the line at 8 m/s on the same lane. Both leave S_in_0 the same way until a has left the junction: a
+    same-direction pair in one lane, 6 + 5 - 4.5 = 6.5 m apart (< d_min), dangerous, whether the routes are known
+    or not (with b's route known, it was in no situation at all, and b rear-ended a unjudged)."""
+    net = RoadNetwork.from_file(NETWORKS / "intersection_priority" / "intersection_priority.net.xml")
+    s_in = float(net.lane_length[net.lane_indices(["S_in_0"])[0]])
+    pairs = _pair(net, [("a", ":J_8_0", 5.0, 0.0, ("S_in", "J_W")), ("b", "S_in_0", s_in - 6.0, 8.0, ("S_in", "J_N"))],
+                  routes)
+    assert len(pairs) == 1 and pairs.kind[0] == 0 and not pairs.a_is_rear[0]
+    assert pairs.lon_gap[0] == pytest.approx(6.5, abs=0.15) and pairs.lat_gap[0] < 0.0 and pairs.dangerous[0]

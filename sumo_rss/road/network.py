@@ -6,7 +6,7 @@ a whole snapshot to indices and looks up geometry and topology without Python lo
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +55,7 @@ class RoadNetwork:
     edge_exit: np.ndarray
     _lane_order: np.ndarray  # argsort of lane_ids, for vectorised id → index lookups
     _edge_lookup: dict[str, int]
+    _downstream: dict[int, np.ndarray] = field(default_factory=dict, repr=False)  # lanes_downstream, per lane
 
     @classmethod
     def from_file(cls, path: str | Path) -> RoadNetwork:
@@ -134,6 +135,25 @@ class RoadNetwork:
         if not np.all(found):
             raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(sorted(set(lane_ids[~found])))}")
         return self._lane_order[pos]
+
+    def lanes_downstream(self, lane: int) -> np.ndarray:
+        """Bool [lanes]: the lanes a car on ``lane`` reaches by following successors, without changing lanes,
+        within REACH_HORIZON_M of its start (``lane`` itself included). Computed once per lane."""
+        reach = self._downstream.get(lane)
+        if reach is None:
+            reach = np.zeros(len(self.lane_ids), dtype=bool)
+            queue, best = [(0.0, lane)], {lane: 0.0}
+            while queue:
+                d, k = heapq.heappop(queue)
+                if d > best[k] or d > REACH_HORIZON_M:
+                    continue
+                reach[k] = True
+                for j in self.lane_successors[k]:
+                    if d + self.lane_length[k] < best.get(j, np.inf):
+                        best[j] = d + self.lane_length[k]
+                        heapq.heappush(queue, (best[j], j))
+            self._downstream[lane] = reach
+        return reach
 
     def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray,
                s_hint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -218,19 +218,58 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     dist_ji = network.edge_distance[ej, ei]
     j_ahead = ~same_edge & np.isfinite(dist_ij) & (dist_ij <= dist_ji)
     i_ahead = ~same_edge & np.isfinite(dist_ji) & (dist_ji < dist_ij)
-    # Chained edges count only along the rear car's remaining route (or any route where it is unknown).
-    for ahead, rear, front_edge in ((j_ahead, i, ej), (i_ahead, j, ei)):
+    # Chained edges count along the rear car's remaining route (or any route where it is unknown), and into a
+    # junction behind a car on an internal lane that the rear car's own lane leads to (it left that lane ahead
+    # of it: both leave the lane the same way until the front car has left the junction).
+    for ahead, rear, front in ((j_ahead, i, j), (i_ahead, j, i)):
         k = np.flatnonzero(ahead)
-        ahead[k] = _on_route(frame, rear[k], front_edge[k], network)
-    # On one edge, compare positions scaled to a common length (lanes of a curved edge differ in length).
-    scale = network.edge_length[ei] / network.lane_length[frame.lane[i]]
-    scale_j = network.edge_length[ej] / network.lane_length[frame.lane[j]]
-    j_front_same_edge = same_edge & (frame.s[j] * scale_j >= frame.s[i] * scale)
+        chained = _on_route(frame, rear[k], frame.edge[front[k]], network)
+        into = np.flatnonzero(~chained & network.edge_internal[frame.edge[front[k]]])
+        chained[into] = _leads_to(network, frame.lane[rear[k[into]]], frame.lane[front[k[into]]])
+        ahead[k] = chained
+    # On one edge, compare positions along the edge (SUMO's lane positions: each lane's shape length scaled to
+    # the edge's length; the lanes of a curved edge differ in shape length).
+    j_front_same_edge = same_edge & (_along_edge(frame, j, network) >= _along_edge(frame, i, network))
     same_dir = same_edge | j_ahead | i_ahead
     opposite = ~same_dir & (network.edge_opposite[ei] == ej) & (ej >= 0)
     kind = np.where(same_dir, 0, np.where(opposite, 1, -1))
     j_is_ref = same_dir & (j_ahead | j_front_same_edge)
     return kind, np.where(j_is_ref, j, i), np.where(j_is_ref, i, j)
+
+
+def _shape_length(network: RoadNetwork, lane: np.ndarray) -> np.ndarray:
+    """[m] the length of lanes' shapes (SUMO's lane length is the edge's, the same for every lane of an edge)."""
+    return network.shapes.cumulative[lane, -1]
+
+
+def _along_edge(frame: VehicleFrame, rows: np.ndarray, network: RoadNetwork) -> np.ndarray:
+    """[m] the centres of vehicles ``rows`` along their edge, as SUMO measures lane positions (a lane's shape
+    length scaled to the edge's length: cars side by side on a curve have the same position)."""
+    lane = frame.lane[rows]
+    return frame.s[rows] * network.edge_length[frame.edge[rows]] / _shape_length(network, lane)
+
+
+def _leads_to(network: RoadNetwork, lanes: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Whether a car on each of ``lanes`` reaches the lane ``targets`` without changing lanes."""
+    out = np.zeros(len(lanes), dtype=bool)
+    pairs, inverse = np.unique(np.column_stack([lanes, targets]), axis=0, return_inverse=True)
+    for k, (lane, target) in enumerate(pairs):
+        out[inverse.ravel() == k] = network.lanes_downstream(int(lane))[target]
+    return out
+
+
+def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarray) -> np.ndarray:
+    """[m] where a car on each of ``lanes`` ends up across the edge of ``ref_lanes`` if it keeps its lane: the
+    offset of the lane it leads on to there (the nearest, where it leads to several) from the reference lane; NaN
+    where it leads to no lane of that edge (it must change lanes on the way)."""
+    out = np.full(len(lanes), np.nan)
+    pairs, inverse = np.unique(np.column_stack([lanes, ref_lanes]), axis=0, return_inverse=True)
+    for k, (lane, ref) in enumerate(pairs):
+        on_edge = network.lanes_downstream(int(lane)) & (network.lane_edge == network.lane_edge[ref])
+        if on_edge.any():
+            offsets = network.lane_offset[on_edge] - network.lane_offset[ref]
+            out[inverse.ravel() == k] = offsets[np.argmin(np.abs(offsets))]
+    return out
 
 
 def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray,
@@ -245,9 +284,17 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
     """
     lane_o, lane_r = frame.lane[other], frame.lane[ref]
     behind = network.edge_distance[frame.edge[other], frame.edge[ref]]  # start of the car's edge to the ref's
-    s = frame.s[other] * network.edge_length[frame.edge[other]] / network.lane_length[lane_o] - behind
-    end = network.shapes.points[lane_o, network.shapes.count[lane_o] - 1]  # where the car's lane joins on
-    _, d_join, _ = network.frenet(lane_r, end[:, 0], end[:, 1], network.lane_length[lane_o] - behind)
+    # Along the lanes (SUMO's lengths), in the reference lane's shape metres.
+    s = (_along_edge(frame, other, network) - behind) * _shape_length(network, lane_r) / network.lane_length[lane_r]
+    # Across: the lane the car's lane leads on to (through a turn, too); where it leads to no lane of the
+    # reference edge, where the end of its lane lies across the reference lane's extension.
+    d_join = _joined_offset(network, lane_o, lane_r)
+    unjoined = np.flatnonzero(np.isnan(d_join))
+    if unjoined.size:
+        lo = lane_o[unjoined]
+        end = network.shapes.points[lo, network.shapes.count[lo] - 1]
+        d_join[unjoined] = network.frenet(lane_r[unjoined], end[:, 0], end[:, 1],
+                                          network.lane_length[lo] - behind[unjoined])[1]
     return s, frame.d[other] + d_join
 
 
@@ -263,7 +310,7 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     # lane lengths, d shifted by the lane offsets) and its lane-relative speeds and per-car terms hold as they
     # are. On the opposite edge of a two-way road its centre is projected and its terms are recomputed.
     lane_r, lane_o = frame.lane[ref], frame.lane[other]
-    s_o = frame.s[other] * network.lane_length[lane_r] / network.lane_length[lane_o]
+    s_o = frame.s[other] * _shape_length(network, lane_r) / _shape_length(network, lane_o)
     d_o = frame.d[other] + network.lane_offset[lane_o] - network.lane_offset[lane_r]
     v_lon_o, v_lat_o = frame.v_lon[other], frame.v_lat[other]
     half_lon_o, half_lat_o = frame.half_lon[other], frame.half_lat[other]
