@@ -32,22 +32,26 @@ def _front_bumper(net: RoadNetwork, lane_id: str, pos: float) -> tuple[float, fl
     return float(x), float(y), float(np.arctan2(direction[1], direction[0]))
 
 
-def _pair(net: RoadNetwork, cars: list[tuple], routes: bool = True):
+def _pair(net: RoadNetwork, cars: list[tuple], routes: bool = True, lateral: tuple[tuple[float, float], ...] = ()):
     """Evaluate cars (id, lane, SUMO lane position of the front bumper [m], speed [m/s][, route]) driving straight
-    along their lanes (route: hw0-hw1-hw2 unless given; ``routes=False``: routes unknown)."""
-    poses = [_front_bumper(net, c[1], c[2]) for c in cars]
+    along their lanes (route: hw0-hw1-hw2 unless given; ``routes=False``: routes unknown); ``lateral``: per car,
+    (offset [m], speed [m/s]) to the left of its lane's centre line (default none)."""
     n = len(cars)
     zero = np.zeros(n)
+    offset, lat_speed = (np.array(v, dtype=float) for v in zip(*lateral)) if lateral else (zero, zero)
+    poses = [_front_bumper(net, c[1], c[2]) for c in cars]
+    poses = [(x - np.sin(h) * d, y + np.cos(h) * d, h + np.arctan2(u, c[3]))
+             for (x, y, h), d, u, c in zip(poses, offset, lat_speed, cars)]
     lanes = np.array([c[1] for c in cars])
     edges = [lane.rsplit("_", 1)[0] for lane in lanes]
     route = [c[4] if len(c) > 4 else ("hw0", "hw1", "hw2") for c in cars]
     snapshot = WorldSnapshot(
         time=0.0, ids=np.array([c[0] for c in cars]), x=np.array([p[0] for p in poses]),
         y=np.array([p[1] for p in poses]), heading=np.array([p[2] for p in poses]),
-        speed=np.array([c[3] for c in cars]), accel=zero, lat_speed=zero, length=np.full(n, LENGTH),
+        speed=np.array([c[3] for c in cars]), accel=zero, lat_speed=lat_speed, length=np.full(n, LENGTH),
         width=np.full(n, WIDTH), lane_id=lanes, edge_id=np.array(edges),
         lane_index=np.array([int(lane.rsplit("_", 1)[1]) for lane in lanes]), lane_pos=np.array([c[2] for c in cars]),
-        lat_pos=zero, vclass=np.array(["background"] * n), vtype=np.array(["car"] * n), signals=np.zeros(n, int),
+        lat_pos=offset, vclass=np.array(["background"] * n), vtype=np.array(["car"] * n), signals=np.zeros(n, int),
         route_index=np.array([r.index(e) if e in r else -1 for r, e in zip(route, edges)]),
         route_edges=tuple(route) if routes else None)
     params = RssParamArrays.stack([preset_params("ad_rss", "background")] * n)
@@ -118,3 +122,24 @@ def test_a_car_behind_a_turning_car_in_the_junction_follows_it_whichever_way_it_
                   routes)
     assert len(pairs) == 1 and pairs.kind[0] == 0 and not pairs.a_is_rear[0]
     assert pairs.lon_gap[0] == pytest.approx(6.5, abs=0.15) and pairs.lat_gap[0] < 0.0 and pairs.dangerous[0]
+
+
+def test_oncoming_cars_stay_a_pair_until_their_bodies_have_passed():
+    """intersection_tls's north arm: a southbound on N_in_1, b northbound on N_out_1 0.9 m to the left of its
+    lane's centre and drifting further left (towards a) at 1 m/s. Their centres have just passed each other (by
+    0.9 m) but the bodies still overlap along the road by 3.6 m, 0.5 m apart across it (< the lateral d_min): a
+    dangerous pair (it was dropped once the centres passed). Once the bodies are wholly past, it is no pair."""
+    net = RoadNetwork.from_file(INTERSECTION_TLS)
+    n_in = float(net.lane_length[net.lane_indices(["N_in_1"])[0]])
+    a = ("a", "N_in_1", 200.0, 10.0, ("N_in", "S_out"))
+
+    def passing(b_pos: float):
+        return _pair(net, [a, ("b", "N_out_1", b_pos, 10.0, ("S_in", "N_out"))], lateral=((0.0, 0.0), (0.9, 1.0)))
+
+    # N_out runs opposite N_in: b's front bumper at n_in - 200 + 0.9 + 4.5 puts its centre 0.9 m past a's.
+    pairs = passing(n_in - 200.0 + 0.9 + LENGTH)
+    assert len(pairs) == 1 and pairs.kind[0] == 1
+    theta = np.arctan2(1.0, 10.0)  # b's heading against its lane: its box reaches further along it
+    along = 0.5 * LENGTH + 0.5 * (LENGTH * np.cos(theta) + WIDTH * np.sin(theta))
+    assert pairs.lon_gap[0] == pytest.approx(0.9 - along, abs=0.05) and pairs.dangerous[0]
+    assert len(passing(n_in - 200.0 + LENGTH + LENGTH + 0.5)) == 0

@@ -330,7 +330,8 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
                                                                      theta)
 
     same = kind == 0
-    keep = same | (s_o > frame.s[ref])  # opposite pairs that have passed each other are no situation any more
+    # Opposite pairs that have passed each other (bodies wholly past) are no situation any more.
+    keep = same | (s_o + half_lon_o + frame.half_lon[ref] > frame.s[ref])
     if not np.all(keep):
         kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
             x[keep] for x in (kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
