@@ -277,9 +277,10 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
                                                        (settings.agent_radius, settings.ego_radius), ego_band)
         lead_gaps, lead_speeds = _lane_end(frame, looks, s, length, free_gaps, free_speeds, settings.lane_end_margin)
+        stop_gap = ego_stop_s - s[:, 0] - 0.5 * length[0]  # [G] the ego's front bumper to its stop line (inf: none)
         if np.isfinite(ego_stop_s):
-            lead_gaps[:, :, 0], lead_speeds[:, :, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], lead_gaps[:, :, 0],
-                                                                  lead_speeds[:, :, 0])
+            lead_gaps[:, :, 0], lead_speeds[:, :, 0] = _stopped_leader(stop_gap, lead_gaps[:, :, 0],
+                                                                       lead_speeds[:, :, 0])
         (gap_t, gap_c), (v_t, v_c) = lead_gaps[:2], lead_speeds[:2]
         lead_is_car = lead_gaps[recorded, :, 0] == free_gaps[recorded, :, 0]
         _, vehicle_samples, ego_samples = layers_recorded[-1]
@@ -297,7 +298,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
                                  free_speeds[1, :, :1], 0.0)
         if np.isfinite(ego_stop_s):
-            gap_go[:, 0], v_go[:, 0] = _stop_line(ego_stop_s, s[:, 0], length[0], gap_go[:, 0], v_go[:, 0])
+            gap_go[:, 0], v_go[:, 0] = _stopped_leader(stop_gap, gap_go[:, 0], v_go[:, 0])
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
         lane_target = frame.lane_ahead(centres.ravel().take(tracked_cells), lane_slope, ell)
@@ -347,7 +348,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
                                                        held)
         if junction_area is not None:  # the ego behind its stop line: able to stop before the area beyond it
-            at_stop = (rows % n == 0) & ~free & (gaps == (ego_stop_s - s[:, 0] - 0.5 * length[0])[rows // n])
+            at_stop = (rows % n == 0) & ~free & (gaps == stop_gap[rows // n])
             p = junction_area.params
             following[at_stop] = np.maximum(following[at_stop], formulas.lon_reach(v_rows[at_stop], p, p.lon_brake_min)
                                             + p.min_lon_gap - junction_area.beyond)
@@ -462,12 +463,6 @@ def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.nda
               v_lead: np.ndarray, margin: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A lane that ends is a stopped leader ``margin`` m before its end."""
     return _stopped_leader(frame.end_s[chain] - margin - s - 0.5 * length[None, :], gap, v_lead)
-
-
-def _stop_line(stop_s: float, s: np.ndarray, length: float, gap: np.ndarray,
-               v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The ego's leader with a stop line at ``stop_s`` (front bumper) as a stopped leader where it is nearer."""
-    return _stopped_leader(stop_s - s - 0.5 * length, gap, v_lead)
 
 
 def _stopped_leader(stop_gap: np.ndarray, gap: np.ndarray, v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
