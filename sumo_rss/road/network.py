@@ -6,6 +6,7 @@ a whole snapshot to indices and looks up geometry and topology without Python lo
 from __future__ import annotations
 
 import heapq
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -142,16 +143,7 @@ class RoadNetwork:
         reach = self._downstream.get(lane)
         if reach is None:
             reach = np.zeros(len(self.lane_ids), dtype=bool)
-            queue, best = [(0.0, lane)], {lane: 0.0}
-            while queue:
-                d, k = heapq.heappop(queue)
-                if d > best[k] or d > REACH_HORIZON_M:
-                    continue
-                reach[k] = True
-                for j in self.lane_successors[k]:
-                    if d + self.lane_length[k] < best.get(j, np.inf):
-                        best[j] = d + self.lane_length[k]
-                        heapq.heappush(queue, (best[j], j))
+            reach[list(_distances_from(lane, self.lane_successors, self.lane_length))] = True
             self._downstream[lane] = reach
         return reach
 
@@ -175,19 +167,26 @@ def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:
 
 def _edge_distances(successors: list[set[int]], length: np.ndarray) -> np.ndarray:
     """All-pairs shortest start-to-start distances [m] over the edge graph (Dijkstra from every edge)."""
-    n = len(successors)
-    dist = np.full((n, n), np.inf)
-    for source in range(n):
-        best = {source: 0.0}
-        queue = [(0.0, source)]
-        while queue:
-            d, e = heapq.heappop(queue)
-            if d > best.get(e, np.inf) or d > REACH_HORIZON_M:
-                continue
-            dist[source, e] = d
-            for f in successors[e]:
-                nd = d + length[e]
-                if nd < best.get(f, np.inf):
-                    best[f] = nd
-                    heapq.heappush(queue, (nd, f))
+    dist = np.full((len(successors), len(successors)), np.inf)
+    for source in range(len(successors)):
+        reached = _distances_from(source, successors, length)
+        dist[source, list(reached)] = list(reached.values())
     return dist
+
+
+def _distances_from(source: int, successors: Sequence[Iterable[int]], length: np.ndarray) -> dict[int, float]:
+    """Shortest start-to-start distances [m] from ``source`` to every node (edge or lane) reached by following
+    ``successors`` within REACH_HORIZON_M (Dijkstra; ``length`` [m] of each node)."""
+    reached: dict[int, float] = {}
+    best, queue = {source: 0.0}, [(0.0, source)]
+    while queue:
+        d, e = heapq.heappop(queue)
+        if d > best[e] or d > REACH_HORIZON_M:
+            continue
+        reached[e] = d
+        for f in successors[e]:
+            nd = d + length[e]
+            if nd < best.get(f, np.inf):
+                best[f] = nd
+                heapq.heappush(queue, (nd, f))
+    return reached
