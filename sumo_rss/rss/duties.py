@@ -7,9 +7,8 @@ both safe → both responses; a pair that appears already dangerous owes the lon
 cars overlap longitudinally, then the lateral one.
 Intersections: able-to-stop held → the car(s) without priority under that step's priority brake (a signal that
 changes at t_b does not turn the car that was allowed through into the one that yields), a priority car may
-drive on; in-front
-held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap, or dangerous when
-first seen) both brake.
+drive on; in-front held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap,
+or dangerous when first seen) both brake.
 """
 from __future__ import annotations
 
