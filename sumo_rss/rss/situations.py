@@ -251,25 +251,30 @@ def _along_edge(frame: VehicleFrame, rows: np.ndarray, network: RoadNetwork) -> 
 
 def _leads_to(network: RoadNetwork, lanes: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Whether a car on each of ``lanes`` reaches the lane ``targets`` without changing lanes."""
-    out = np.zeros(len(lanes), dtype=bool)
-    pairs, inverse = np.unique(np.column_stack([lanes, targets]), axis=0, return_inverse=True)
-    for k, (lane, target) in enumerate(pairs):
-        out[inverse.ravel() == k] = network.lanes_downstream(int(lane))[target]
-    return out
+    pairs, inverse = _distinct_lane_pairs(network, lanes, targets)
+    return np.array([network.lanes_downstream(lane)[target] for lane, target in pairs], dtype=bool)[inverse]
 
 
 def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarray) -> np.ndarray:
     """[m] where a car on each of ``lanes`` ends up across the edge of ``ref_lanes`` if it keeps its lane: the
     offset of the lane it leads on to there (the nearest, where it leads to several) from the reference lane; NaN
     where it leads to no lane of that edge (it must change lanes on the way)."""
-    out = np.full(len(lanes), np.nan)
-    pairs, inverse = np.unique(np.column_stack([lanes, ref_lanes]), axis=0, return_inverse=True)
+    pairs, inverse = _distinct_lane_pairs(network, lanes, ref_lanes)
+    out = np.full(len(pairs), np.nan)
     for k, (lane, ref) in enumerate(pairs):
-        on_edge = network.lanes_downstream(int(lane)) & (network.lane_edge == network.lane_edge[ref])
+        on_edge = network.lanes_downstream(lane) & (network.lane_edge == network.lane_edge[ref])
         if on_edge.any():
             offsets = network.lane_offset[on_edge] - network.lane_offset[ref]
-            out[inverse.ravel() == k] = offsets[np.argmin(np.abs(offsets))]
-    return out
+            out[k] = offsets[np.argmin(np.abs(offsets))]
+    return out[inverse]
+
+
+def _distinct_lane_pairs(network: RoadNetwork, lanes: np.ndarray, others: np.ndarray
+                         ) -> tuple[list[tuple[int, int]], np.ndarray]:
+    """The distinct (lane, other lane) pairs of two lane-index arrays, and the pair of each element."""
+    count = len(network.lane_ids)
+    keys, inverse = np.unique(np.asarray(lanes) * count + np.asarray(others), return_inverse=True)
+    return [(int(key) // count, int(key) % count) for key in keys], inverse.ravel()
 
 
 def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray,
