@@ -242,6 +242,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         # Runs with another controller go to their own folder, as in a batch sweep, not over the scenario's run.
         variant = variant_name({"controller": args.controller}) if args.controller else ""
+        signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C: the half-written run folder is removed
         summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step)
     print(f"{spec.name} seed {spec.seed}: {summary.steps} steps, {summary.vehicles_inserted} vehicles "
           f"(peak {summary.peak_vehicles}), {summary.collisions} collisions, {summary.teleports} teleports, "

@@ -29,6 +29,8 @@ DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
 CONTROLLERS = ("sumo", "epsilon", "mpdm")
 BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
 MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer
+_NOT_IN_IDS = " \t\n\r|\\'\";,<>&"  # characters SUMO refuses in vehicle and vType ids
+_NOT_IN_NAMES = "/\\,;"  # a scenario's name is a folder of its runs, inside SUMO's file lists (split on , and ;)
 MAX_DURATION_S = 7 * 86400.0  # [s] the longest run a scenario may ask for
 
 
@@ -167,11 +169,13 @@ class ScenarioSpec:
                                     has_got=False)
             spec = replace(spec, ego=replace(spec.ego, controller=controller))
         if seed is not None:
-            if not 0 <= seed <= MAX_SEED:
+            if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
                 raise ScenarioError(self.source, "seed", f"expected an integer in [0, {MAX_SEED}]", seed)
             spec = replace(spec, seed=seed)
         if duration_s is not None:  # the file's duration_s is replaced: errors name the override, not the file's
             key = "duration_s override (e.g. --duration)"
+            if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)):
+                raise ScenarioError(self.source, key, "expected a number [s]", duration_s)
             if not duration_s > 0 or (self.ego is not None and duration_s <= self.ego.depart_s):
                 lower = f"ego.depart_s ({self.ego.depart_s:g})" if self.ego is not None else "0"
                 raise ScenarioError(self.source, key, f"expected a number > {lower}", duration_s)
@@ -255,6 +259,9 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
                                            "'sumo-rss batch'", has_got=False)
     top = TableReader(data, path)
     name = top.string("name", path.stem)
+    if name.startswith(".") or any(c in name for c in _NOT_IN_NAMES) or not name.isprintable():
+        raise top.error("name", "expected a name for the run folders: printable, not starting with '.', without "
+                                "'/', '\\', ',' or ';' (the default is the file's name)", name)
     network, net_file = _read_network(top, path)
     topology = _topology(top, net_file)
     duration = top.number("duration_s", min=0.0, max=MAX_DURATION_S, min_exclusive=True)
@@ -268,6 +275,9 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     demand = _read_demand(top.table("demand"), topology, duration)
     ego = _read_ego(top.table("ego"), topology, duration) if top.has("ego") else None
     if ego is not None:
+        if ego.id in {f.id for f in demand.flows}:
+            raise ScenarioError(path, "ego.id", "expected an id other than the flows' (each names its route "
+                                                f"route_<id> in the route file)", ego.id)
         clash = next((f.id for f in demand.flows if re.fullmatch(rf"{re.escape(f.id)}\.\d+", ego.id)), None)
         if clash is not None:
             raise ScenarioError(path, "ego.id", f"expected an id that is not a vehicle of flow {clash!r} "
@@ -310,6 +320,13 @@ def _read_sumo(t: TableReader) -> SumoSpec:
     )
     t.finish()
     return spec
+
+
+def _sumo_id(t: TableReader, key: str, value: str) -> str:
+    """``value`` (read at ``key``) if SUMO accepts it as a vehicle, flow or vType id."""
+    if any(c in value for c in _NOT_IN_IDS) or not value.isprintable():
+        raise t.error(key, "expected an id SUMO accepts: no spaces and none of | \\ ' \" ; , < > &", value)
+    return value
 
 
 def _read_vtype(t: TableReader, vtype_id: str, *, with_probability: bool) -> VehicleTypeSpec:
@@ -382,7 +399,8 @@ def _read_depart_lane(t: TableReader, first_edge: str, topology: NetTopology) ->
 
 
 def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> DemandSpec:
-    vtypes = tuple(_read_vtype(r, name, with_probability=True) for name, r in t.named_tables("vtypes").items())
+    vtypes = tuple(_read_vtype(r, _sumo_id(t, f"vtypes.{name}", name), with_probability=True)
+                   for name, r in t.named_tables("vtypes").items())
     if not vtypes:
         vtypes = (VehicleTypeSpec("car"),)
     names = {v.id for v in vtypes}
@@ -407,7 +425,7 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
             _check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
                                 f"the max_speed of vType {slowest.id!r}")
         flows.append(FlowSpec(
-            id=f.string("id", f"flow{i}"), route=route,
+            id=_sumo_id(f, "id", f.string("id", f"flow{i}")), route=route,
             veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
             if kind == "veh_per_hour" else None,
             probability=f.number("probability", min=0.0, max=1.0, min_exclusive=True)
@@ -468,7 +486,7 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
         raise t.error("depart_s", f"expected a time before the end of the run (duration_s = {duration:g})",
                       depart_s)
     spec = EgoSpec(
-        id=t.string("id", "ego"), route=route, depart_s=depart_s,
+        id=_sumo_id(t, "id", t.string("id", "ego")), route=route, depart_s=depart_s,
         depart_lane=_read_depart_lane(t, route[0], topology),
         depart_pos_m=t.number("depart_pos_m", 0.0, min=0.0, max=first.length),
         depart_speed=t.number("depart_speed", 0.0, min=0.0, max=100.0),
@@ -508,17 +526,25 @@ def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpe
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
     spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing)
-    # Resolve every class once so that inconsistent overrides fail here, at load time.
+    problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
+    if problem is not None:
+        raise t.error(*problem)
+    return spec
+
+
+def rss_inconsistency(rss: RssSpec, demand: DemandSpec, ego: EgoSpec | None) -> tuple[str, str] | None:
+    """(key below [rss], message) of the first vehicle class whose RSS parameters the preset and overrides of
+    ``rss`` make inconsistent (each class is resolved once), or None."""
     checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
     for role, vtype_id, vt in checks:
         try:
-            resolve_params(preset, role, vtype_id, role_overrides=roles, vtype_overrides=by_vtype,
-                           tau=vt.tau, decel=vt.decel)
+            resolve_params(rss.preset, role, vtype_id, role_overrides=rss.role_overrides,
+                           vtype_overrides=rss.vtype_overrides, tau=vt.tau, decel=vt.decel)
         except ValueError as exc:
-            key = f"vtypes.{vtype_id}" if vtype_id in by_vtype else role
+            key = f"vtypes.{vtype_id}" if vtype_id in rss.vtype_overrides else role
             who = f"{role} vType {vtype_id!r}" if vtype_id else role
-            raise t.error(key, f"inconsistent RSS parameters for {who} (preset {preset!r}): {exc}") from exc
-    return spec
+            return key, f"inconsistent RSS parameters for {who} (preset {rss.preset!r}): {exc}"
+    return None
 
 
 def _read_param_overrides(t: TableReader) -> dict[str, float]:

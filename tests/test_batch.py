@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 
 import pandas as pd
 import pytest
@@ -18,8 +20,8 @@ from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
 from sumo_rss.batch.orchestrator import _BatchLock, run_batch
 from sumo_rss.batch.runner import run_one
-from sumo_rss.batch.spec import BatchSpec, Task, load_batch
-from sumo_rss.errors import SumoRssError
+from sumo_rss.batch.spec import BatchSpec, Task, load_batch, parse_seeds
+from sumo_rss.errors import ScenarioError, SumoRssError
 from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
 from sumo_rss.report.summary import read_batch_csv, responsibility_category, responsibility_table
 
@@ -84,6 +86,64 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
     again = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
     assert "3 runs ok, 3 failed" in again.stdout
     assert (out / "light" / "0" / "summary.json").stat().st_mtime_ns == finished  # skipped, not rerun
+
+
+def test_a_batch_removes_only_its_own_half_written_runs(two_scenarios, tmp_path):
+    """A batch cleans up what a killed batch left of its own runs; other ``.partial`` folders below its output
+    folder may be runs in progress of another batch or 'sumo-rss run', which it must not delete."""
+    out = tmp_path / "out"
+    own, foreign, sibling = out / "light" / ".0.k1ll3d.partial", out / "other" / ".0.busy.partial", \
+        out / "light" / ".10.busy.partial"
+    for folder in (own, foreign, sibling):
+        folder.mkdir(parents=True)
+    task = Task(load_scenario(two_scenarios / "light.toml").with_overrides(seed=0), "")
+    rows = run_batch([task], out, LocalExecutor(workers=1), progress=False)
+    assert list(rows.status) == ["ok"]
+    assert not own.exists() and foreign.is_dir() and sibling.is_dir()
+
+
+def test_a_run_whose_folder_is_removed_meanwhile_fails_instead_of_reporting_ok(two_scenarios, tmp_path):
+    """What is written after the folder went would be an incomplete run (no manifest, routes or SUMO log)."""
+    spec = load_scenario(two_scenarios / "light.toml")
+
+    def remove_the_work_folder(simulated: float) -> None:
+        if abs(simulated - 5.0) < 1e-6:
+            for partial in (tmp_path / "out" / "light").glob(f".{spec.seed}.*.partial"):
+                shutil.rmtree(partial)
+
+    with pytest.raises(SumoRssError, match="the run's folder was removed while the run was writing it"):
+        run_one(spec, tmp_path / "out", on_step=remove_the_work_folder)
+    assert list((tmp_path / "out" / "light").iterdir()) == []
+
+
+def test_a_moved_checkout_resumes_its_batches_but_a_changed_network_reruns(two_scenarios, tmp_path):
+    """The parameter hash counts the network by its content: a re-cloned or moved repository (another absolute
+    path, the same file) must not rerun and delete finished runs."""
+    spec = load_scenario(two_scenarios / "light.toml")
+    moved = tmp_path / "elsewhere" / spec.net_file.name
+    moved.parent.mkdir()
+    moved.write_bytes(spec.net_file.read_bytes())
+    assert Task(replace(spec, net_file=moved), "").parameter_hash() == Task(spec, "").parameter_hash()
+    moved.write_bytes(spec.net_file.read_bytes().replace(b'speed="33.33"', b'speed="30.00"', 1))
+    assert Task(replace(spec, net_file=moved), "").parameter_hash() != Task(spec, "").parameter_hash()
+
+
+def test_a_preset_sweep_rechecks_the_egos_overrides_at_load(two_scenarios, valid_scenario):
+    """Under krauss (b_min = b_max = the vType's decel) an ego override lon_brake_min = 6 is inconsistent: said
+    when the batch is built, naming the file and key, not by every run failing once the ego departs."""
+    valid_scenario["rss"] = {"ego": {"lon_brake_min": 6.0}}
+    write_scenario(two_scenarios, valid_scenario, "braking.toml")
+    (two_scenarios / "sweep.toml").write_text('[batch]\nscenarios = ["braking.toml"]\n[batch.grid]\n'
+                                              'rss_preset = ["ad_rss", "krauss"]\n')
+    with pytest.raises(ScenarioError, match=r"braking\.toml: rss\.ego: inconsistent RSS parameters for ego \(preset "
+                                            r"'krauss'\): expected lon_brake_min_correct <= lon_brake_min"):
+        load_batch(two_scenarios / "sweep.toml").tasks()
+
+
+def test_a_huge_seed_range_is_refused_before_it_is_built():
+    with pytest.raises(ValueError, match=r"\(at most 100000 seeds\), got '0:99999999999'"):
+        parse_seeds("0:99999999999")
+    assert parse_seeds("5:8") == (5, 6, 7)
 
 
 def test_a_killed_batch_resumes_without_duplicates_or_partial_files(two_scenarios, tmp_path):
@@ -245,6 +305,21 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path, s
     assert (summary.status == "ok").sum() >= 1 and set(summary.status) <= {"ok", "missing"}
 
 
+def test_sigterm_stops_a_single_run_cleanly(two_scenarios, tmp_path):
+    """'sumo-rss run' under a scheduler or timeout: SIGTERM is Ctrl-C, and the half-written run folder goes."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "sumo_rss", "run", str(two_scenarios / "light.toml"), "--duration",
+                             "300", "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not list(out.glob("*/.*.partial/routes.rou.xml")) and time.time() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "interrupted" in err
+    assert list(out.glob("**/.*.partial")) == [] and list(out.glob("*/0")) == []
+
+
 def test_a_batch_script_without_a_main_guard_fails_with_a_message_that_says_so(two_scenarios, tmp_path):
     """Workers are spawned and import the script again: without the guard each one dies before its run starts,
     and the failure says why instead of blaming SUMO."""
@@ -270,12 +345,12 @@ def test_the_batch_lock_is_exclusive_and_a_left_over_lock_file_is_taken_over(tmp
     file left by a killed batch (any content: its process is gone, and the kernel dropped its lock) is no
     obstacle, and the lock file is gone after the batch."""
     (tmp_path / ".batch.lock").write_text("garbage\n")
-    with _BatchLock(tmp_path):
+    with _BatchLock(tmp_path, []):
         assert (tmp_path / ".batch.lock").read_text() == f"{os.getpid()}\n"
         with pytest.raises(SumoRssError, match=rf"another batch \(process {os.getpid()}\) is running"):
-            _BatchLock(tmp_path).__enter__()
+            _BatchLock(tmp_path, []).__enter__()
     assert not (tmp_path / ".batch.lock").exists()
-    with _BatchLock(tmp_path):
+    with _BatchLock(tmp_path, []):
         pass
 
 
@@ -338,3 +413,10 @@ def test_the_runs_table_prints_three_decimals_also_next_to_a_failed_run(tmp_path
                             "real_time_factor": ["13.456789", ""], "error": ["", "Traceback ..."]})
     shown = _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}", na_rep="")
     assert "13.457" in shown and "13.456789" not in shown and "Traceback ..." in shown
+
+
+def test_report_names_an_emptied_audit_csv_of_the_batch(tmp_path):
+    (tmp_path / "batch_summary.csv").write_text("run_id,scenario,variant,seed,status\nhw/0,hw,,0,ok\n")
+    (tmp_path / "episodes.csv").write_text("")
+    with pytest.raises(SumoRssError, match=r"episodes\.csv: not a CSV file as 'sumo-rss batch' writes it"):
+        write_report(tmp_path)

@@ -21,7 +21,7 @@ from sumo_rss import load_scenario
 from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
-from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, overlap_contacts, read_vehicle_info
+from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, overlap_contacts, read_collisions, read_vehicle_info
 from sumo_rss.rss.signals import SignalStates
 from sumo_rss.sim.session import Session
 from sumo_rss.sim.snapshot import WorldSnapshot
@@ -212,7 +212,45 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
                    'lane="hw0_0" pos="5"/></timestep></fcd-export>')
     proc = _cli("audit", str(bad), "--net", str(HIGHWAY), "--out", str(tmp_path / "out2"))
     assert proc.returncode == 2
-    assert "bad_x.xml, time step 0.0 s: vehicle 'car.7': x: expected a number, got 'abc'" in proc.stderr, proc.stderr
+    assert "bad_x.xml, time step 0.0 s: vehicle 'car.7': x: expected a finite number, got 'abc'" in proc.stderr, \
+        proc.stderr
+
+
+def _fcd_vehicle(vid: str, at: float, **changed: str) -> str:
+    attributes = {"id": vid, "x": f"{at}", "y": "-1.75", "angle": "90", "speed": "3", "lane": "hw0_1", "pos": f"{at}",
+                  "posLat": "0", "acceleration": "0", "type": "car", **changed}
+    return "<vehicle " + " ".join(f'{k}="{v}"' for k, v in attributes.items()) + "/>"
+
+
+@pytest.mark.parametrize("changed, message", [
+    ({"x": "nan"}, "vehicle 'a': x: expected a finite number, got 'nan'"),
+    ({"speed": "inf"}, "vehicle 'a': speed: expected a finite number, got 'inf'"),
+    ({"pos": "abc10"}, "vehicle 'a': pos: expected a finite number, got 'abc10'"),
+    ({"acceleration": "x0"}, "vehicle 'a': acceleration: expected a finite number, got 'x0'"),
+    ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer, got '0.0'"),
+    ({"id": "b"}, "vehicle 'b' is listed more than once"),
+], ids=["nan", "inf", "optional", "acceleration", "signals", "twice"])
+@pytest.mark.filterwarnings("ignore:.*vType car is not defined")
+def test_bad_values_in_an_fcd_name_the_time_step_vehicle_and_attribute(tmp_path, changed, message):
+    """Every attribute read is checked (finite numbers, integer signals, ids once per step): a bad value is an
+    error naming where it is, not a traceback, a NaN in the geometry or a silently different audit."""
+    fcd = tmp_path / "f.xml"
+    fcd.write_text(f'<fcd-export><timestep time="0.00">{_fcd_vehicle("b", 60.0)}</timestep>'
+                   f'<timestep time="0.10">{_fcd_vehicle("a", 20.0, **changed)}{_fcd_vehicle("b", 60.3)}'
+                   "</timestep></fcd-export>")
+    with pytest.raises(FcdError) as error:
+        list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
+    assert str(error.value) == f"{fcd}, time step 0.1 s: {message}"
+
+
+@pytest.mark.parametrize("time, after", [('time="abc30"', "after time step 0.0 s"), ("", "after time step 0.0 s")],
+                         ids=["not-a-number", "missing"])
+def test_a_time_step_without_a_time_is_named_by_the_step_before(tmp_path, time, after):
+    fcd = tmp_path / "f.xml"
+    fcd.write_text('<fcd-export><timestep time="0.00"></timestep>'
+                   f"<timestep {time}></timestep></fcd-export>")
+    with pytest.raises(FcdError, match=re.escape(f"f.xml: <timestep> ({after}): time: expected a number of seconds")):
+        list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
 
 
 def test_vtypes_are_read_as_sumo_resolves_them(tmp_path):
@@ -339,6 +377,28 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
         assert (tmp_path / "offline" / name).read_bytes() == (run / name).read_bytes(), name
 
 
+def test_a_signal_state_file_of_another_run_is_refused_or_named(tmp_path):
+    """--tls-states must be SUMO's signal-state output for this network: another file was read as 'no states', and
+    every signal fell back to equal priority (a different audit, silently). A signal without states keeps its
+    network program, with a warning."""
+    net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+    wrong = tmp_path / "collisions.xml"
+    wrong.write_text('<collisions></collisions>')
+    with pytest.raises(ValueError, match=r"collisions\.xml: not a readable SUMO signal-state file \(root element "
+                                         r"<collisions>, expected <tlsStates>"):
+        SignalStates(net, wrong)
+    foreign = tmp_path / "other.xml"
+    foreign.write_text('<tlsStates><tlsState time="0.00" id="J9" state="GGrr"/></tlsStates>')
+    with pytest.raises(ValueError, match=r"other\.xml: states of signal\(s\) J9 that .*intersection_tls\.net\.xml "
+                                         "does not have"):
+        SignalStates(net, foreign)
+    empty = tmp_path / "empty.xml"
+    empty.write_text("<tlsStates></tlsStates>")
+    with pytest.warns(UserWarning, match=r"empty\.xml: no states of signal\(s\) C; their network programs are used"):
+        fallback = SignalStates(net, empty)
+    assert fallback.states(12.3) == SignalStates(net).states(12.3)
+
+
 def test_hold_standing_is_the_same_online_and_offline_and_counts_fewer_queued_dangers(tmp_path):
     """A run with ``[rss] hold_standing = true`` and the offline audit of its FCD with --hold-standing write the same
     CSVs; without the option the offline audit finds the pairs in danger for longer (cars queued at the red lights:
@@ -457,3 +517,15 @@ def test_audit_with_the_runs_scenario_applies_its_rss_overrides(tmp_path, valid_
     assert (tmp_path / "preset" / "episodes.csv").read_bytes() != (run / "episodes.csv").read_bytes()
     clash = _cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--hold-standing")
     assert clash.returncode == 2 and "--scenario sets the RSS parameters" in clash.stderr
+
+
+def test_another_file_given_as_the_collision_output_is_refused(tmp_path):
+    """An FCD file given as --collisions was read as 'no collisions' without a word."""
+    fcd = tmp_path / "fcd.xml"
+    fcd.write_text('<fcd-export><timestep time="0.00"/></fcd-export>')
+    with pytest.raises(FcdError, match=r"fcd\.xml: not a readable SUMO collision-output file \(root element "
+                                       r"<fcd-export>, expected <collisions>\)"):
+        read_collisions(fcd)
+    (tmp_path / "c.xml").write_text('<collisions><collision time="3.10" collider="a" victim="b" type="collision"/>'
+                                    "</collisions>")
+    assert [(c.time, c.collider, c.victim) for c in read_collisions(tmp_path / "c.xml")[3.1]] == [(3.1, "a", "b")]

@@ -91,6 +91,19 @@ BROKEN = [
      "demand.vtypes.ego_type", "the route file's own vType names"),
     ("no vType in the mix", lambda d: _set(d, "demand.vtypes.car.probability", 0.0), "demand.vtypes",
      "expected a vType with probability > 0 for the flows that draw from the mix (main)"),
+    # The name is the folder of the scenario's runs: it must not lead out of the results folder.
+    ("name leaving the results folder", lambda d: _set(d, "name", "../victim"), "name",
+     "expected a name for the run folders: printable, not starting with '.', without '/'"),
+    ("name of the results folder", lambda d: _set(d, "name", "."), "name", "not starting with '.'"),
+    ("name with a comma", lambda d: _set(d, "name", "a,b"), "name", "without '/', '\\', ',' or ';'"),
+    # Ids SUMO refuses, or that clash in the route file (route_<id>), are named here, not by SUMO at start-up.
+    ("ego id with a space", lambda d: _set(d, "ego.id", "my ego"), "ego.id", "expected an id SUMO accepts"),
+    ("flow id with markup", lambda d: _set(d, "demand.flows.0.id", 'a<b&"c'), "demand.flows[0].id",
+     "none of | \\ ' \" ; , < > &"),
+    ("vType id with a comma", lambda d: _set(d, "demand.vtypes", {"a,b": {"probability": 1.0}}),
+     "demand.vtypes.a,b", "expected an id SUMO accepts"),
+    ("ego id of a flow", lambda d: _set(d, "demand.flows.0.id", "ego"), "ego.id",
+     "expected an id other than the flows' (each names its route route_<id> in the route file)"),
 ]
 
 
@@ -206,6 +219,18 @@ def test_a_bad_duration_option_is_refused_naming_the_option(tmp_path, valid_scen
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().splitlines()[-1].endswith(message.format(path=path))
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("override, message", [
+    ({"seed": True}, "seed: expected an integer in [0, 2147483647], got True"),
+    ({"seed": 3.7}, "seed: expected an integer in [0, 2147483647], got 3.7"),
+    ({"duration_s": "60"}, "duration_s override (e.g. --duration): expected a number [s], got '60'"),
+])
+def test_overrides_from_python_are_checked_like_the_files_values(tmp_path, valid_scenario, override, message):
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with pytest.raises(ScenarioError) as error:
+        spec.with_overrides(**override)
+    assert str(error.value).endswith(message)
 
 
 def test_a_batch_file_given_as_a_scenario_says_so():

@@ -1,8 +1,8 @@
 """Run a batch: skip finished runs, execute the rest (locally or on Ray), show progress, write the outputs.
 
 A batch folder is locked while a batch runs in it (an flock on ``.batch.lock``, which holds the process id); the
-kernel drops the lock of a process that dies, and the next batch removes the half-written ``*.partial`` run folders
-that process left behind.
+kernel drops the lock of a process that dies, and the next batch removes the half-written ``*.partial`` folders that
+process left behind for the batch's own runs (only those: another batch may be writing elsewhere below the folder).
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
     if out_dir.exists() and not out_dir.is_dir():
         raise SumoRssError(f"{out_dir}: expected a folder for the batch's results, got a file")
     out_dir.mkdir(parents=True, exist_ok=True)
-    with _BatchLock(out_dir):
+    with _BatchLock(out_dir, tasks):
         todo = [t for t in tasks if not _finished(out_dir, t)]
         stale = [run_directory(out_dir, t) for t in todo if (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
         if stale:
@@ -61,7 +61,7 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
             try:
                 executor.run(todo, out_dir, on_result)
             finally:  # also after Ctrl-C: what finished is summarised, what was killed leaves nothing behind
-                _remove_partial_runs(out_dir)
+                _remove_partial_runs(out_dir, tasks)
                 rows = write_batch_outputs(out_dir, tasks)
     return rows
 
@@ -85,9 +85,10 @@ class _BatchLock:
     """An exclusive lock (flock) on ``<out>/.batch.lock``, which holds the process id for the error message. The
     kernel releases it when its process dies, so a lock file left behind by a killed batch is simply locked anew."""
 
-    def __init__(self, out_dir: Path):
+    def __init__(self, out_dir: Path, tasks: list[Task]):
         self.path = out_dir / LOCK_FILE
         self.out_dir = out_dir
+        self.tasks = tasks
         self._file: IO[str] | None = None
 
     def __enter__(self) -> _BatchLock:
@@ -113,7 +114,7 @@ class _BatchLock:
         fh.write(f"{os.getpid()}\n")
         fh.flush()
         self._file = fh
-        _remove_partial_runs(self.out_dir)  # left by a batch that died mid-run
+        _remove_partial_runs(self.out_dir, self.tasks)  # left by a batch that died mid-run
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -123,7 +124,10 @@ class _BatchLock:
             self._file = None
 
 
-def _remove_partial_runs(out_dir: Path) -> None:
-    """Remove half-written run folders; only safe while holding the batch lock."""
-    for partial in out_dir.glob("**/.*.partial"):
-        shutil.rmtree(partial, ignore_errors=True)
+def _remove_partial_runs(out_dir: Path, tasks: list[Task]) -> None:
+    """Remove the half-written folders of ``tasks``' runs (``<scenario folder>/.<seed>.*.partial``, see
+    :func:`run_one`); only safe while holding the batch lock. Other ``.partial`` folders below ``out_dir`` may be
+    runs of another batch or ``sumo-rss run`` in progress, and are left alone."""
+    for folder in {run_directory(out_dir, t) for t in tasks}:
+        for partial in folder.parent.glob(f".{folder.name}.*.partial"):
+            shutil.rmtree(partial, ignore_errors=True)

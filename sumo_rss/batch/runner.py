@@ -20,7 +20,7 @@ from typing import Protocol
 import tomli_w
 
 from .. import __version__
-from ..errors import ScenarioError
+from ..errors import ScenarioError, SumoRssError
 from ..files import write_json
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, CollisionInput, ParamResolver
@@ -147,6 +147,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         audit = auditor.finish()
         wall = time.perf_counter() - started
         simulated = round(session.steps * spec.step_s, 3)  # steps are whole ms: no float residue (30.400000000000002)
+        if not (work / MANIFEST_FILE).is_file():  # its folder was removed meanwhile: what is written now is partial
+            raise SumoRssError(f"{work}: the run's folder was removed while the run was writing it (by another "
+                               "process); its results would be incomplete")
         audit.to_csv(work)
         planner = report() if report is not None else None
         if planner is not None:

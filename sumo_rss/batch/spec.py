@@ -13,6 +13,7 @@ controller = ["sumo"]                                     # the ego's controller
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
@@ -20,11 +21,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import ScenarioError
-from ..rss.params import PRESETS, resolve_params
-from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario
+from ..rss.params import PRESETS
+from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario, rss_inconsistency
 from ..validation import TableReader, read_toml
 
 GRID_KEYS = ("rss_preset", "demand_scale", "controller")
+MAX_SEEDS = 100_000  # seeds of one batch (a range is checked before it is expanded)
 
 
 @dataclass(frozen=True)
@@ -40,9 +42,22 @@ class Task:
         return f"{self.spec.name}{'__' + self.variant if self.variant else ''}/{self.spec.seed}"
 
     def parameter_hash(self) -> str:
-        """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing."""
-        text = json.dumps(self.spec.to_toml_data(), sort_keys=True, default=str)
+        """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing. The network
+        counts by its content, not its path: a moved or re-cloned checkout resumes its batches."""
+        data = {**self.spec.to_toml_data(), "network": _file_digest(self.spec.net_file)}
+        text = json.dumps(data, sort_keys=True, default=str)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_digest(path: Path, size: int, modified_ns: int) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (read again only when its size or modification time changed)."""
+    status = path.stat()
+    return _cached_digest(path.resolve(), status.st_size, status.st_mtime_ns)
 
 
 @dataclass(frozen=True)
@@ -69,13 +84,9 @@ def apply_variant(spec: ScenarioSpec, values: dict) -> ScenarioSpec:
     """The scenario with the variant's overrides; raises ScenarioError for an impossible combination."""
     if "rss_preset" in values:
         spec = replace(spec, rss=replace(spec.rss, preset=values["rss_preset"]))
-        for vt in spec.demand.vtypes:  # the overrides must still be consistent under the new preset
-            try:
-                resolve_params(spec.rss.preset, "background", vt.id, role_overrides=spec.rss.role_overrides,
-                               vtype_overrides=spec.rss.vtype_overrides, tau=vt.tau, decel=vt.decel)
-            except ValueError as exc:
-                raise ScenarioError(spec.source, "rss", f"inconsistent under preset {spec.rss.preset!r}: {exc}",
-                                    has_got=False) from exc
+        problem = rss_inconsistency(spec.rss, spec.demand, spec.ego)  # the overrides under the new preset
+        if problem is not None:
+            raise ScenarioError(spec.source, f"rss.{problem[0]}", problem[1], has_got=False)
     if "demand_scale" in values:
         scale = values["demand_scale"]
         flows = tuple(replace(f, veh_per_hour=f.veh_per_hour * scale if f.veh_per_hour is not None else None,
@@ -91,12 +102,14 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
     """``[0, 1, 5]``, ``"0:20"`` (20 excluded) or ``"1,7,42"`` → seeds; ValueError (or the reader's
     ScenarioError) otherwise."""
     def fail() -> Exception:
-        expected = f"expected a list of integers in [0, {MAX_SEED}], 'A:B' or 'a,b,c'"
+        expected = f"expected a list of integers in [0, {MAX_SEED}], 'A:B' or 'a,b,c' (at most {MAX_SEEDS} seeds)"
         return reader.error("seeds", expected, value) if reader else ValueError(f"{expected}, got {value!r}")
 
     try:
         if isinstance(value, str) and ":" in value:
             lo, hi = (int(x) for x in value.split(":", 1))
+            if hi - lo > MAX_SEEDS:
+                raise fail()
             seeds = list(range(lo, hi))
         elif isinstance(value, str):
             seeds = [int(x) for x in value.split(",")]
@@ -106,7 +119,7 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
             raise fail()
     except ValueError:
         raise fail() from None
-    if not seeds or min(seeds) < 0 or max(seeds) > MAX_SEED:
+    if not seeds or len(seeds) > MAX_SEEDS or min(seeds) < 0 or max(seeds) > MAX_SEED:
         raise fail()
     return tuple(dict.fromkeys(seeds))
 

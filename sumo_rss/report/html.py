@@ -24,19 +24,14 @@ def write_report(batch_dir: Path) -> Path:
     path = batch_dir / "batch_summary.csv"
     if not path.is_file():
         raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
-    try:
-        summary = read_batch_csv(batch_dir, "batch_summary")
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss batch' writes it ({exc})") from None
+    summary = _read(batch_dir, "batch_summary")
     missing = [c for c in SUMMARY_COLUMNS_USED if c not in summary.columns]
     if missing:
         raise SumoRssError(f"{path}: expected the columns {', '.join(SUMMARY_COLUMNS_USED)} (as 'sumo-rss batch' "
                            f"writes them), missing {', '.join(missing)}")
     if summary.empty:
         raise SumoRssError(f"{path}: lists no runs")
-    episodes = read_batch_csv(batch_dir, "episodes")
-    violations = read_batch_csv(batch_dir, "violations")
-    states = read_batch_csv(batch_dir, "pair_states")
+    episodes, violations, states = (_read(batch_dir, name) for name in ("episodes", "violations", "pair_states"))
     figures_dir = batch_dir / "report"
     figures_dir.mkdir(exist_ok=True)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
@@ -60,6 +55,15 @@ def write_report(batch_dir: Path) -> Path:
     out = batch_dir / "report.html"
     write_text(out, page)
     return out
+
+
+def _read(batch_dir: Path, name: str) -> pd.DataFrame:
+    """A batch CSV (:func:`read_batch_csv`); SumoRssError naming it where it is not one."""
+    try:
+        return read_batch_csv(batch_dir, name)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SumoRssError(f"{batch_dir / (name + '.csv')}: not a CSV file as 'sumo-rss batch' writes it ({exc})") \
+            from None
 
 
 def longest_traced_episode(episodes: pd.DataFrame, states: pd.DataFrame) -> pd.Series | None:

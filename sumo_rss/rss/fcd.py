@@ -7,8 +7,10 @@ Vehicle sizes come from a vType/route file or SUMO's defaults; collisions from S
 """
 from __future__ import annotations
 
+import math
 import warnings
 import xml.etree.ElementTree as ET
+from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -94,15 +96,19 @@ def read_collisions(path: Path) -> dict[float, list[CollisionEvent]]:
     """SUMO's collision-output file, as the reports of each time step."""
     reports: dict[float, list[CollisionEvent]] = {}
     try:
-        for _, elem in ET.iterparse(path, events=("end",)):
-            if elem.tag == "collision":
+        context = ET.iterparse(path, events=("start", "end"))
+        _, root = next(context)
+        if root.tag != "collisions":
+            raise ValueError(f"root element <{root.tag}>, expected <collisions>")
+        for event, elem in context:
+            if event == "end" and elem.tag == "collision":
                 t = float(elem.get("time", "nan"))
                 reports.setdefault(t, []).append(CollisionEvent(
                     t, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
                     elem.get("victimType", ""), float(elem.get("colliderSpeed", 0)),
                     float(elem.get("victimSpeed", 0)), elem.get("type", ""), elem.get("lane", ""),
                     float(elem.get("pos", 0))))
-    except (ET.ParseError, ValueError) as exc:
+    except (ET.ParseError, ValueError, StopIteration) as exc:
         raise FcdError(f"{path}: not a readable SUMO collision-output file ({exc})") from exc
     return reports
 
@@ -134,7 +140,7 @@ class FcdReader:
                 if event == "start" and elem.tag == "timestep":
                     time = elem.get("time")
                 elif event == "end" and elem.tag == "timestep":
-                    yield self._snapshot(elem, float(elem.get("time", "nan")))
+                    yield self._snapshot(elem, self._time_of(elem))
                     root.clear()
         except ET.ParseError as exc:
             where = f"after time step {time} s" if time is not None else "before the first time step"
@@ -152,6 +158,18 @@ class FcdReader:
                           "--lateral-resolution), and the lateral speeds of such steps are not physical",
                           stacklevel=3)
 
+    def _time_of(self, step: ET.Element) -> float:
+        """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
+        value = step.get("time")
+        try:
+            time = float(value) if value is not None else math.nan
+        except ValueError:
+            time = math.nan
+        if not math.isfinite(time):
+            after = f"after time step {self._prev_time} s" if self._prev_time is not None else "first time step"
+            raise FcdError(f"{self.path}: <timestep> ({after}): time: expected a number of seconds, got {value!r}")
+        return time
+
     def _snapshot(self, step: ET.Element, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
@@ -163,6 +181,9 @@ class FcdReader:
         except KeyError as exc:
             raise FcdError(f"{where}: a vehicle lacks the attribute {exc} (needed: id, x, y, angle, speed, lane)") \
                 from exc
+        if len(set(ids.tolist())) < len(ids):
+            twice = next(v for v, count in Counter(ids.tolist()).items() if count > 1)
+            raise FcdError(f"{where}: vehicle {twice!r} is listed more than once")
         x, y, angle, speed = (_numbers(rows, name, where) for name in ("x", "y", "angle", "speed"))
         try:
             lane = self.network.lane_indices(lane_id)
@@ -181,9 +202,7 @@ class FcdReader:
         heading = compass_deg_to_heading(angle)
 
         def optional(name: str) -> np.ndarray | None:
-            if rows and all(name in r for r in rows):
-                return np.array([float(r[name]) for r in rows])
-            return None
+            return _numbers(rows, name, where) if rows and all(name in r for r in rows) else None
 
         lane_pos, lat_pos = optional("pos"), optional("posLat")
         if lane_pos is None or lat_pos is None:  # SUMO's pos and posLat are those of the front-bumper centre
@@ -216,7 +235,7 @@ class FcdReader:
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
             vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
-            signals=np.array([int(r.get("signals", 0)) for r in rows], dtype=int),
+            signals=_numbers(rows, "signals", where, integer=True, default="0"),
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None)
 
 
@@ -272,18 +291,27 @@ def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations) -> np.ndarray:
     return overlap
 
 
-def _numbers(rows: list[dict[str, str]], name: str, where: str) -> np.ndarray:
-    """Attribute ``name`` of every vehicle of a time step as floats; FcdError naming the vehicle and the value."""
+def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool = False,
+             default: str | None = None) -> np.ndarray:
+    """Attribute ``name`` of every vehicle of a time step as finite floats (or integers), ``default`` where a
+    vehicle lacks it (None: required); FcdError naming the vehicle and the value."""
+    kind = int if integer else float
     try:
-        return np.array([float(r[name]) for r in rows])
-    except (KeyError, ValueError):
-        for r in rows:  # find the vehicle to name
-            if name not in r:
-                raise FcdError(f"{where}: vehicle {r.get('id', '?')!r} lacks the attribute '{name}' (needed: id, x, "
-                               "y, angle, speed, lane)") from None
-            try:
-                float(r[name])
-            except ValueError:
-                raise FcdError(f"{where}: vehicle {r.get('id', '?')!r}: {name}: expected a number, got "
-                               f"{r[name]!r}") from None
-        raise
+        values = np.array([kind(r.get(name, default)) for r in rows], dtype=kind)  # type: ignore[arg-type]
+        if integer or np.isfinite(values).all():
+            return values
+    except (TypeError, ValueError):
+        pass
+    bad = next(r for r in rows if not _is_number(r.get(name, default), kind))
+    if bad.get(name, default) is None:
+        raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r} lacks the attribute '{name}' (needed: id, x, y, "
+                       "angle, speed, lane)")
+    raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r}: {name}: expected "
+                   f"{'an integer' if integer else 'a finite number'}, got {bad[name]!r}")
+
+
+def _is_number(text: str | None, kind: type) -> bool:
+    try:
+        return text is not None and math.isfinite(kind(text))
+    except ValueError:
+        return False

@@ -110,27 +110,41 @@ class SignalStates:
     def __init__(self, net_file: Path, saved_states: Path | None = None):
         self._saved: dict[str, tuple[list[float], list[str]]] = {}
         self._programs: dict[str, tuple[float, list[tuple[float, str]]]] = {}
+        net = sumolib.net.readNet(str(net_file), withPrograms=True)
+        signals = {tls.getID(): tls for tls in net.getTrafficLights()}
         if saved_states is not None:
             self._read_saved(saved_states)
-            return
-        net = sumolib.net.readNet(str(net_file), withPrograms=True)
-        for tls in net.getTrafficLights():
+            foreign = sorted(set(self._saved) - set(signals))
+            if foreign:
+                raise ValueError(f"{saved_states}: states of signal(s) {', '.join(foreign[:5])} that {net_file} does "
+                                 "not have; is it the signal-state file of a run on this network?")
+            missing = sorted(set(signals) - set(self._saved))
+            if missing:
+                warnings.warn(f"{saved_states}: no states of signal(s) {', '.join(missing)}; their network programs "
+                              "are used instead", stacklevel=2)
+        for tl_id, tls in signals.items():
+            if tl_id in self._saved:
+                continue
             programs = list(tls.getPrograms().values())
             if len(programs) != 1 or programs[0].getType() != "static":
-                warnings.warn(f"{net_file}: signal {tls.getID()} has no single fixed-time program; its links are "
+                warnings.warn(f"{net_file}: signal {tl_id} has no single fixed-time program; its links are "
                               "audited as equal priority (give --tls-states for the real states)", stacklevel=2)
                 continue
             phases = [(float(p.duration), p.state) for p in programs[0].getPhases()]
-            self._programs[tls.getID()] = (float(getattr(programs[0], '_offset', 0) or 0.0), phases)
+            self._programs[tl_id] = (float(getattr(programs[0], '_offset', 0) or 0.0), phases)
 
     def _read_saved(self, path: Path) -> None:
         try:
-            for _, elem in ET.iterparse(path, events=("end",)):
-                if elem.tag == "tlsState":
+            context = ET.iterparse(path, events=("start", "end"))
+            _, root = next(context)
+            if root.tag != "tlsStates":
+                raise ValueError(f"root element <{root.tag}>, expected <tlsStates> (SUMO's SaveTLSStates output)")
+            for event, elem in context:
+                if event == "end" and elem.tag == "tlsState":
                     times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
                     times.append(float(elem.get("time", "nan")))
                     states.append(elem.get("state", ""))
-        except (ET.ParseError, ValueError) as exc:
+        except (ET.ParseError, ValueError, StopIteration) as exc:
             raise ValueError(f"{path}: not a readable SUMO signal-state file ({exc})") from exc
 
     def states(self, time: float) -> dict[str, str] | None:

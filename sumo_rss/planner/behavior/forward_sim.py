@@ -461,7 +461,9 @@ def _idm_per_rollout(idm: IdmParams, ego_spacing_scale: np.ndarray, n: int) -> n
 
 def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
               v_lead: np.ndarray, margin: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A lane that ends is a stopped leader ``margin`` m before its end."""
+    """A lane that ends is a stopped leader ``margin`` m before its end (new arrays: the caller writes into them)."""
+    if np.isinf(frame.end_s).all():  # no lane of the frame ends (the common case: skip the look-ups)
+        return gap.copy(), v_lead.copy()
     return _stopped_leader(frame.end_s[chain] - margin - s - 0.5 * length[None, :], gap, v_lead)
 
 
