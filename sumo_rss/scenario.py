@@ -277,7 +277,7 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     if ego is not None:
         if ego.id in {f.id for f in demand.flows}:
             raise ScenarioError(path, "ego.id", "expected an id other than the flows' (each names its route "
-                                                f"route_<id> in the route file)", ego.id)
+                                                "route_<id> in the route file)", ego.id)
         clash = next((f.id for f in demand.flows if re.fullmatch(rf"{re.escape(f.id)}\.\d+", ego.id)), None)
         if clash is not None:
             raise ScenarioError(path, "ego.id", f"expected an id that is not a vehicle of flow {clash!r} "
