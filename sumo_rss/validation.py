@@ -74,7 +74,7 @@ class TableReader:
         if key in self._data:
             return self._data[key]
         if default is _MISSING:
-            raise self.error(key, "required key is missing")
+            raise self.error(key, f"required key is missing{self.misspelt([key])}")
         return default
 
     # -- scalar accessors ----------------------------------------------------------------------------------
@@ -122,7 +122,7 @@ class TableReader:
         value = self._take(key, default)
         if not isinstance(value, list) or len(value) < min_len or \
                 not all(isinstance(v, str) and v for v in value):
-            raise self.error(key, f"expected a list of at least {min_len} non-empty strings", value)
+            raise self.error(key, f"expected a list of {_at_least(min_len)}non-empty strings", value)
         return tuple(value)
 
     def number_table(self, key: str) -> dict[str, float]:
@@ -143,7 +143,7 @@ class TableReader:
     def table_list(self, key: str, *, min_len: int = 0) -> list[TableReader]:
         value = self._take(key, [])
         if not isinstance(value, list) or len(value) < min_len:
-            raise self.error(key, f"expected an array of at least {min_len} tables ([[{self.key_path(key)}]])",
+            raise self.error(key, f"expected an array of {_at_least(min_len)}tables ([[{self.key_path(key)}]])",
                              value)
         return [TableReader(item, self.file, f"{self.key_path(key)}[{i}]") for i, item in enumerate(value)]
 
@@ -165,6 +165,10 @@ class TableReader:
             hint = f" (did you mean {close!r}?)" if close else ""
             hint += f"; known keys here: {', '.join(known)}" if known else ""
             raise self.error(unknown[0], f"unknown key{hint}")
+
+
+def _at_least(count: int) -> str:
+    return f"at least {count} " if count else ""
 
 
 def _range_text(noun: str, lo: float | None, hi: float | None, lo_exclusive: bool) -> str:

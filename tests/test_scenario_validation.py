@@ -36,6 +36,8 @@ BROKEN = [
     ("duration between steps", lambda d: _set(d, "duration_s", 30.45), "duration_s",
      "a whole number of steps of step_s = 0.1 s (the run stops at a step), e.g. 30.4 or 30.5"),
     ("missing network", lambda d: _delete(d, "network"), "network", "required key is missing"),
+    ("misspelt required key", lambda d: (_delete(d, "duration_s"), _set(d, "duraton_s", 30.0)), "duration_s",
+     "required key is missing (did you mean 'duration_s' for 'duraton_s'?)"),
     ("unknown network", lambda d: _set(d, "network", "autobahn"), "network", "expected a network name"),
     ("missing net file", lambda d: _set(d, "network", "nowhere/x.net.xml"), "network", "existing .net.xml"),
     ("unknown rss preset", lambda d: _set(d, "rss.preset", "strict"), "rss.preset", "'ad_rss'"),
