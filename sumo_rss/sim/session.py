@@ -149,9 +149,13 @@ class Session:
                 log_file=folder / "sumo.log" if self.run_dir else None)
 
         args = arguments(out)
-        (out / "sumo_command.txt").write_text(
-            "# SUMO command line of this run; run it from this folder to reproduce the run with plain SUMO.\n"
-            + " ".join(arguments(Path("."))) + "\n", encoding="utf-8")
+        ego = self.spec.ego
+        driven = ego is not None and ego.controller != "sumo"
+        note = (f"; its ego is driven by the {ego.controller} planner through libsumo, so plain SUMO runs only the "
+                "background traffic the same way until the ego departs" if driven else
+                "; run it from this folder to reproduce the run with plain SUMO")
+        (out / "sumo_command.txt").write_text(f"# SUMO command line of this run{note}.\n"
+                                              + " ".join(arguments(Path("."))) + "\n", encoding="utf-8")
         _active = self
         try:
             libsumo.start(args)
