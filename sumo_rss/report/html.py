@@ -9,7 +9,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import write_text
+from ..files import atomic_path, write_text
 from .plots import ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import read_batch_csv, responsibility_table, run_label, violation_table
 
@@ -48,7 +48,8 @@ def write_report(batch_dir: Path) -> Path:
     images = {}
     for name, fig in figures.items():
         path = figures_dir / f"{name}.png"
-        fig.savefig(path, dpi=100)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=100, format="png")
         plt.close(fig)
         images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
     page = _page(batch_dir, summary, responsibility, broken, images)
