@@ -529,3 +529,18 @@ def test_another_file_given_as_the_collision_output_is_refused(tmp_path):
     (tmp_path / "c.xml").write_text('<collisions><collision time="3.10" collider="a" victim="b" type="collision"/>'
                                     "</collisions>")
     assert [(c.time, c.collider, c.victim) for c in read_collisions(tmp_path / "c.xml")[3.1]] == [(3.1, "a", "b")]
+
+
+@pytest.mark.filterwarnings("ignore:.*vType car is not defined")
+def test_an_ego_id_that_is_not_in_the_fcd_is_named(tmp_path):
+    """A mistyped --ego audited the whole file as background traffic without a word."""
+    fcd = tmp_path / "f.xml"
+    fcd.write_text(f'<fcd-export><timestep time="0.00">{_fcd_vehicle("a", 20.0)}{_fcd_vehicle("b", 60.0)}'
+                   "</timestep></fcd-export>")
+    network = RoadNetwork.from_file(HIGHWAY)
+    with pytest.warns(UserWarning, match=r"f\.xml: no vehicle egoo \(given as the ego\): audited without it"):
+        audit_fcd(fcd, network, ParamResolver(), ego_ids=("a", "egoo"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        warnings.filterwarnings("ignore", ".*vType car is not defined")
+        audit_fcd(fcd, network, ParamResolver(), ego_ids=("a",))

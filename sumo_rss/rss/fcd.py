@@ -255,14 +255,20 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
     auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
+    absent = set(ego_ids)  # ego ids not seen in the file yet
     for snapshot in FcdReader(fcd, network, vehicles, ego_ids):
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
+        if absent:
+            absent.difference_update(snapshot.ids.tolist())
         if reports is not None:
             new = contacts.step(reports.get(snapshot.time, []))
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind) for c in new])
             continue
         found = overlap_contacts(snapshot, auditor.observe(snapshot))
         auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
+    if absent:
+        warnings.warn(f"{fcd}: no vehicle {', '.join(sorted(absent))} (given as the ego): audited without it",
+                      stacklevel=2)
     return auditor.finish()
 
 
