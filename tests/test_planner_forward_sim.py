@@ -526,3 +526,16 @@ def test_the_mpdm_baseline_simulates_4_s_in_0_4_s_steps():
     t, ends = step_times((config.layer_duration,) * config.layers, config.sim_step)
     np.testing.assert_allclose(np.diff(t), 0.4)
     assert t[-1] == pytest.approx(4.0) and ends[-1] == 10
+
+
+def test_a_standing_ego_does_not_creep_into_the_rss_distance_with_hold_standing(highway):
+    """With ``hold_standing`` a standing car is not assumed to accelerate during ρ, so standing 3 m behind a
+    stopped car is RSS-safe. A plan that moves the ego is judged as moving (a_acc = 3.5 m/s²: d_min 3.28 m from
+    rest at ad_rss values): it must not creep closer. It pulsed forward about once a second in the queues of
+    intersection_priority, opening a new danger episode each time."""
+    net, _ = highway
+    snap = _snapshot([300.0, 307.5], [-5.25, -5.25], [0.0, 0.0], ["hw0_1", "hw0_1"])  # a 3.0 m bumper gap
+    planner = EpsilonPlanner(net, ParamResolver("ad_rss", hold_standing=True), PlannerConfig(desired_speed=30.0))
+    result = planner.plan(snap, "v0")
+    assert result.trajectory.speed.max() < 0.01
+    assert result.trajectory.x[-1] - result.trajectory.x[0] < 0.01

@@ -130,3 +130,17 @@ def test_lane_changes_start_only_towards_a_neighbour_on_the_same_edge(lane_id, m
     assert bool(lateral) == may_change
     # Per speed action: KKKKK, plus KLLLL ... KKKKL where the left lane may be entered (no lane on the right); + backup.
     assert len(result.costs) == (3 * 5 + 1 if may_change else 3 + 1)
+
+
+def test_a_neighbour_chain_ends_where_its_lane_turns_off_the_route():
+    """The ego in the left-turn lane S_in_1 (route S_in → W_out): its right neighbour S_in_0 leads only straight
+    on or right, off the route. Carried on through the right turn, that chain read 37 m across the ego's frame
+    at the junction (a 1.5 rad kink), and cars coming up in S_in_0 turned into the ego's way in the forward
+    simulation: the ego's start across the junction was called off for a phantom collision."""
+    net = _net("intersection_tls")
+    chains = lane_chains(net, int(net.lane_indices(["S_in_1"])[0]), net.edge_indices(["S_in", "W_out"]))
+    right = [str(net.lane_ids[k]) for k in chains.lanes[chains.chain_of[RIGHT]]]
+    assert right[-1] == "S_in_0"
+    frame = RoadFrame.build(chains)
+    assert np.abs(np.diff(frame.centre[RIGHT])).max() < 0.2  # [m] per grid step: parallel to the ego's lane
+    assert frame.end_s[RIGHT] == np.inf  # it goes on (off the route): no standing obstacle at its end

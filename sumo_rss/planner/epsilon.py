@@ -11,7 +11,7 @@ the emergency backup (lane keep, braking at the ego's RSS b_min) is executed.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -151,8 +151,12 @@ class EpsilonPlanner:
             branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
-        ego_params = _row(params, 0)
+        # The ego is planned as moving: with hold_standing a standing ego has a_acc = 0 now, which makes 0 m the
+        # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
+        # (else it creeps up in pulses, each a new danger episode).
         ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
+        params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
+        ego_params = _row(params, 0)
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()

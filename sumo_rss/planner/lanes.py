@@ -70,7 +70,10 @@ class LaneChains:
 def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: float = 250.0,
                 backward: float = 160.0) -> LaneChains:
     """Chains through the ego's lane and its neighbours, ``forward`` m ahead along the route (any successor where
-    the route says nothing) and ``backward`` m behind."""
+    the route says nothing) and ``backward`` m behind. A neighbour's chain ends where its lane leaves the route (a
+    turn lane beside the ego's): carried on through that turn, its offset from the ego's chain would be
+    meaningless (a right-turn lane beside a left turn read 37 m across, and cars in it turned into the ego's way
+    in the forward simulation)."""
     predecessors: dict[int, list[int]] = {}
     for k, succ in enumerate(network.lane_successors):
         for j in succ:
@@ -84,7 +87,7 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         if first < 0:
             continue
         ahead = own_ahead if which == CURRENT else \
-            _walk(network, first, network.lane_successors, route_set, forward, own=True)
+            _walk(network, first, network.lane_successors, route_set, forward, own=True, route_only=bool(route_set))
         behind = _walk(network, first, predecessors, route_set, backward, own=False)[::-1]
         chain = tuple(behind + ahead)
         pts: list[np.ndarray] = []
@@ -132,9 +135,9 @@ def _first_neighbour(neighbour: np.ndarray, lanes: list[int]) -> int:
 
 
 def _walk(network: RoadNetwork, lane: int, graph: object, route: set[int], length: float, *,
-          own: bool) -> list[int]:
+          own: bool, route_only: bool = False) -> list[int]:
     """Lanes from ``lane`` (included when ``own``) along ``graph`` until ``length`` m, preferring lanes whose
-    edge (or the edge a junction lane leads into) is on the route."""
+    edge (or the edge a junction lane leads into) is on the route; with ``route_only``, ending where none is."""
     out = [lane] if own else []
     total, current = 0.0 if own else 0.0, lane
     seen = {lane}
@@ -144,6 +147,8 @@ def _walk(network: RoadNetwork, lane: int, graph: object, route: set[int], lengt
         if not options:
             break
         on_route = [k for k in options if int(network.edge_exit[network.lane_edge[k]]) in route]
+        if route_only and not on_route:
+            break
         current = (on_route or options)[0]
         seen.add(current)
         out.append(current)
