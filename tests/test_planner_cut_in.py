@@ -110,3 +110,31 @@ def test_the_guard_does_not_let_the_ego_speed_up_towards_an_oncoming_car(highway
     planned = TrajectoryState(300.0 + 4.5 + 20.0 * DT, -5.25, 0.0, 20.0 + 1.0 * DT, 1.0)
     oncoming = _owed("other", must_brake=False, same_direction=False)  # the auditor's opposite-direction episode
     assert guard.apply(snapshot, 0, frame, planned, oncoming).speed == pytest.approx(20.0)
+
+
+def test_owed_braking_is_planned_from_the_end_of_the_response_time_until_the_pair_is_safe(highway):
+    """The ego 30 m behind a car at 25 m/s (RSS distance 89.2 m) owes it braking from 0.5 s on (t_b 0.5 s ago,
+    ρ = 1 s): the rollout brakes from then on as the guard would make it, instead of IDM's mild braking (21.6
+    m/s at the lowest), and stops braking once the pair is safe again (at 2.4 s, 16.7 m/s; 15.2 m/s at the
+    lowest as the jerk limit releases the brake), not down to a standstill."""
+    _, frame = highway
+    n = 2
+    z = np.zeros(n)
+    vehicles = Vehicles(np.array([100.0, 100.0 + 4.5 + GAP]), z.copy(), z.copy(), np.full(n, 25.0), z.copy(),
+                        z.copy(), np.full(n, 4.5), np.full(n, 1.8), np.full(n, CURRENT))
+    rollouts = Rollouts(np.full((1, 5), CURRENT), np.array([30.0]), np.ones(1), np.zeros(1, dtype=bool), 4.2,
+                        np.full((1, n), CURRENT), np.array([0.0, 25.0]))
+    p = RssParams()
+
+    def run(due):
+        return simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * n),
+                        owed_brake_due=due)
+
+    mild, owed = run(None), run(np.array([np.inf, 0.5]))
+    before = owed.t <= 0.5 + 1e-9
+    np.testing.assert_array_equal(owed.speed[0, before, 0], mild.speed[0, before, 0])
+    assert owed.speed[0, :, 0].min() < mild.speed[0, :, 0].min() - 3.0
+    v_e, v_f = owed.speed[0, -1, 0], owed.speed[0, -1, 1]
+    gap = owed.s[0, -1, 1] - owed.s[0, -1, 0] - 4.5
+    assert gap >= formulas.lon_safe_distance_same_dir(v_e, v_f, p, p) - 1.0  # safe (to a step's braking) at the end
+    assert owed.speed[0, :, 0].min() > 14.0  # braking ended with the danger

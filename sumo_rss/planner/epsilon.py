@@ -161,9 +161,11 @@ class EpsilonPlanner:
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
         cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
+        owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
-                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap, area)
+                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap, area,
+                       owed_due)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:
@@ -300,6 +302,20 @@ class EpsilonPlanner:
         if not np.any(ahead):
             return None
         return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
+
+    @staticmethod
+    def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
+                      response_time: float) -> np.ndarray | None:
+        """[s from now] per vehicle column: when the ego's response time ends in an open episode in which it owes
+        that car (a car it follows) longitudinal braking (inf elsewhere; None: no such car among the key
+        vehicles). The forward simulation brakes from then on while the pair is unsafe, as the guard will."""
+        if owed is None or not np.any(owed.must_brake & owed.same_direction):
+            return None
+        rows = owed.must_brake & owed.same_direction
+        match = snapshot.ids[key.rows][:, None] == owed.other_id[rows][None, :]
+        due = np.where(match, (owed.t_b[rows] + response_time - snapshot.time)[None, :], np.inf).min(axis=1,
+                                                                                                   initial=np.inf)
+        return np.concatenate([[np.inf], due]) if np.isfinite(due).any() else None
 
     def _reference_speed(self, frame: RoadFrame, s_ego: float, v: float) -> float:
         """epsilon.md §2.7: the reference speed over :func:`_speed_reach` ahead of the ego's centre at ``s_ego``."""

@@ -190,15 +190,18 @@ def following_distance(v: Any, v_lead: Any, rss_ego: Any, front_worst: Any, held
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
              ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None,
-             junction_area: JunctionArea | None = None) -> SimResult:
+             junction_area: JunctionArea | None = None, owed_brake_due: np.ndarray | None = None) -> SimResult:
     """Run every rollout over the layers ``durations`` [s]. ``rss_ego`` / ``rss_agents`` (RssParams /
     RssParamArrays over all n vehicles) drive the evasive override and the virtual barrier; ``ego_stop_s`` [m] is a
     stop line for the ego's front bumper (a stopped leader there: a red light or a yield line). ``cut_in_gap``
     [n] [m]: per car, a gap the ego keeps to it in place of the RSS distance where that is shorter (inf: none): a
     car that cut in, which the ego owes no longitudinal braking, is followed at the gap it left rather than
     braked for at once. ``junction_area``: the conflict area past the stop line, which the ego approaching the
-    line stays able to stop before. Rollouts that share a prefix of the tree are simulated once until they branch
-    (:func:`prefix_tree`)."""
+    line stays able to stop before. ``owed_brake_due`` [n] [s from now]: per car, when the ego's response time
+    ends in an open episode in which it owes that car longitudinal braking (inf: none); from then on, while the
+    pair is RSS-unsafe, the ego brakes at least at its b_min and does not move off once stopped (rss.md §5, as the
+    guard will make it), so the plans contain the braking the guard would otherwise apply as a step. Rollouts
+    that share a prefix of the tree are simulated once until they branch (:func:`prefix_tree`)."""
     t, layer_end = step_times(durations, sim_step)
     n_steps, n = t.size - 1, len(vehicles)
     tree = prefix_tree(rollouts)
@@ -366,6 +369,10 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
             target_offset[:, 0] = np.where(hold, d[:, 0] - lane_target[:, 0], 0.0)
+        if owed_brake_due is not None:
+            owes = _owes_braking(s, d, v, t[k + 1], owed_brake_due, length, width, rss_ego, rss_agents)
+            speed_cmd[:, 0] = np.where(owes, np.minimum(speed_cmd[:, 0], np.maximum(v[:, 0] - rss_ego.lon_brake_min
+                                                                                    * dt, 0.0)), speed_cmd[:, 0])
         speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
         # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame (a bend of
         # the lane, or of the frame's centre line beside a straight lane) the car turns with it at once, and pure
@@ -437,6 +444,23 @@ def leaders_ahead(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nd
     ds = s.ravel().take(flat_j) - s
     ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
     return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j), np.where(ahead, j, n)
+
+
+def _owes_braking(s: np.ndarray, d: np.ndarray, v: np.ndarray, t_end: float, due: np.ndarray, length: np.ndarray,
+                  width: np.ndarray, rss_ego: Any, rss_agents: Any) -> np.ndarray:
+    """[G] whether the ego owes braking in the step ending at ``t_end`` [s]: its response time has ended
+    (``due`` [n], see :func:`simulate`) in an episode with a car that is still ahead of it and RSS-unsafe both
+    ways (longitudinally, and laterally at zero lateral speeds: in its lane)."""
+    cols = np.flatnonzero(due < t_end - 1e-9)
+    if cols.size == 0:
+        return np.zeros(s.shape[0], dtype=bool)
+    p = rss_agents.take(cols)
+    gap = s[:, cols] - s[:, :1] - 0.5 * (length[0] + length[cols])
+    lon_unsafe = ~formulas.is_safe_distance(gap, formulas.lon_safe_distance_same_dir(v[:, :1], v[:, cols], rss_ego,
+                                                                                      p))
+    lat_gap = np.abs(d[:, cols] - d[:, :1]) - 0.5 * (width[0] + width[cols])
+    lat_unsafe = ~formulas.is_safe_distance(lat_gap, formulas.lat_safe_distance(0.0, 0.0, rss_ego, p))
+    return np.any((s[:, cols] > s[:, :1]) & lon_unsafe & lat_unsafe, axis=1)
 
 
 def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agent: float, settings: SimSettings
