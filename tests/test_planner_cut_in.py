@@ -27,7 +27,7 @@ GAP = 30.0  # [m] bumper gap the cut-in left
 DT = 0.1
 
 
-def _follow(frame, cut_in_gap):
+def _follow(frame, cut_in_gap, owed_brake_due=None):
     """The ego (column 0) and the car ahead, both 4.5 m long at 25 m/s; the car keeps 25 m/s; 5 s of keep-lane
     with the ego wanting 30 m/s."""
     n = 2
@@ -38,7 +38,7 @@ def _follow(frame, cut_in_gap):
                         np.full((1, n), CURRENT), np.array([0.0, 25.0]))
     p = RssParams()
     return simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * n),
-                    cut_in_gap=cut_in_gap)
+                    cut_in_gap=cut_in_gap, owed_brake_due=owed_brake_due)
 
 
 def test_the_ego_keeps_the_gap_a_cut_in_left_instead_of_braking_for_the_rss_distance(highway):
@@ -118,19 +118,8 @@ def test_owed_braking_is_planned_from_the_end_of_the_response_time_until_the_pai
     m/s at the lowest), and stops braking once the pair is safe again (at 2.4 s, 16.7 m/s; 15.2 m/s at the
     lowest as the jerk limit releases the brake), not down to a standstill."""
     _, frame = highway
-    n = 2
-    z = np.zeros(n)
-    vehicles = Vehicles(np.array([100.0, 100.0 + 4.5 + GAP]), z.copy(), z.copy(), np.full(n, 25.0), z.copy(),
-                        z.copy(), np.full(n, 4.5), np.full(n, 1.8), np.full(n, CURRENT))
-    rollouts = Rollouts(np.full((1, 5), CURRENT), np.array([30.0]), np.ones(1), np.zeros(1, dtype=bool), 4.2,
-                        np.full((1, n), CURRENT), np.array([0.0, 25.0]))
     p = RssParams()
-
-    def run(due):
-        return simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * n),
-                        owed_brake_due=due)
-
-    mild, owed = run(None), run(np.array([np.inf, 0.5]))
+    mild, owed = _follow(frame, None), _follow(frame, None, np.array([np.inf, 0.5]))
     before = owed.t <= 0.5 + 1e-9
     np.testing.assert_array_equal(owed.speed[0, before, 0], mild.speed[0, before, 0])
     assert owed.speed[0, :, 0].min() < mild.speed[0, :, 0].min() - 3.0

@@ -384,8 +384,8 @@ def test_a_signal_state_file_of_another_run_is_refused_or_named(tmp_path):
     net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
     wrong = tmp_path / "collisions.xml"
     wrong.write_text('<collisions></collisions>')
-    with pytest.raises(ValueError, match=r"collisions\.xml: not a readable SUMO signal-state file \(root element "
-                                         r"<collisions>, expected <tlsStates>"):
+    with pytest.raises(ValueError, match=r"collisions\.xml: not a readable SUMO signal-state file \(SaveTLSStates "
+                                         r"output: root element <collisions>, expected <tlsStates>"):
         SignalStates(net, wrong)
     foreign = tmp_path / "other.xml"
     foreign.write_text('<tlsStates><tlsState time="0.00" id="J9" state="GGrr"/></tlsStates>')

@@ -24,6 +24,7 @@ from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
+from ..sumo_xml import output_elements
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations
@@ -96,19 +97,14 @@ def read_collisions(path: Path) -> dict[float, list[CollisionEvent]]:
     """SUMO's collision-output file, as the reports of each time step."""
     reports: dict[float, list[CollisionEvent]] = {}
     try:
-        context = ET.iterparse(path, events=("start", "end"))
-        _, root = next(context)
-        if root.tag != "collisions":
-            raise ValueError(f"root element <{root.tag}>, expected <collisions>")
-        for event, elem in context:
-            if event == "end" and elem.tag == "collision":
-                t = float(elem.get("time", "nan"))
-                reports.setdefault(t, []).append(CollisionEvent(
-                    t, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
-                    elem.get("victimType", ""), float(elem.get("colliderSpeed", 0)),
-                    float(elem.get("victimSpeed", 0)), elem.get("type", ""), elem.get("lane", ""),
-                    float(elem.get("pos", 0))))
-    except (ET.ParseError, ValueError, StopIteration) as exc:
+        for elem in output_elements(path, "collisions", "collision"):
+            t = float(elem.get("time", "nan"))
+            reports.setdefault(t, []).append(CollisionEvent(
+                t, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
+                elem.get("victimType", ""), float(elem.get("colliderSpeed", 0)),
+                float(elem.get("victimSpeed", 0)), elem.get("type", ""), elem.get("lane", ""),
+                float(elem.get("pos", 0))))
+    except (ET.ParseError, ValueError) as exc:
         raise FcdError(f"{path}: not a readable SUMO collision-output file ({exc})") from exc
     return reports
 

@@ -22,6 +22,7 @@ import sumolib
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
+from ..sumo_xml import output_elements
 from .intersection import next_route_edge
 from .situations import VehicleFrame
 
@@ -135,17 +136,12 @@ class SignalStates:
 
     def _read_saved(self, path: Path) -> None:
         try:
-            context = ET.iterparse(path, events=("start", "end"))
-            _, root = next(context)
-            if root.tag != "tlsStates":
-                raise ValueError(f"root element <{root.tag}>, expected <tlsStates> (SUMO's SaveTLSStates output)")
-            for event, elem in context:
-                if event == "end" and elem.tag == "tlsState":
-                    times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
-                    times.append(float(elem.get("time", "nan")))
-                    states.append(elem.get("state", ""))
-        except (ET.ParseError, ValueError, StopIteration) as exc:
-            raise ValueError(f"{path}: not a readable SUMO signal-state file ({exc})") from exc
+            for elem in output_elements(path, "tlsStates", "tlsState"):
+                times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
+                times.append(float(elem.get("time", "nan")))
+                states.append(elem.get("state", ""))
+        except (ET.ParseError, ValueError) as exc:
+            raise ValueError(f"{path}: not a readable SUMO signal-state file (SaveTLSStates output: {exc})") from exc
 
     def states(self, time: float) -> dict[str, str] | None:
         out = {}
