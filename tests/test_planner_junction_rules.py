@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.planner.junction_rules import NO_STOP, STOP_MARGIN, stop_line
+from sumo_rss.planner.junction_rules import NO_STOP, STOP_MARGIN, Crossing, stop_line
 from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.road.routes import RouteTable
@@ -138,3 +138,27 @@ def test_with_hold_standing_a_car_standing_at_red_does_not_hold_the_ego_but_a_cr
     assert list(resolver.arrays(standing).lon_accel_max) == [0.0, 0.0]
     assert stop(standing) == NO_STOP
     assert stop(_snapshot(net, [ego, ("w", "W_in_1", 1.0, 1.0, ("W_in", "N_out"))], phase)).reason == "rss"
+
+
+def test_the_yield_timing_assumes_the_ego_crossing_as_it_drives():
+    """The ego standing 2 m before its line turns left across the oncoming straight lane (permissive left). It
+    accelerates at 1.0 m/s² and turns at 3 m/s (its reference speed there): from rest, 2 m to the line take 2 s
+    (reaching 2 m/s), and 25 m beyond it take 1 s to reach 3 m/s (2.5 m) and 22.5 / 3 = 7.5 s more, 10.5 s in
+    all; the former assumption (1.5 m/s², no cap) gave √(2·1.5·27) / 1.5 = 6 s. An oncoming car 90-130 m out at
+    13 m/s arrives in between: the ego started, found it would not clear in time after all, and stopped again."""
+    assert Crossing(1.0, lambda start, length: 13.0 if start == 0.0 else 3.0).time_to_cover(0.0, 2.0, 27.0) == \
+        pytest.approx(10.5)
+    assert Crossing().time_to_cover(0.0, 2.0, 27.0) == pytest.approx(6.0)
+    net, junctions = _model("intersection_tls")
+    phase = {"C": "GGgrrrGGgrrr"}
+    ego = ("ego", "S_in_1", 2.0, 0.0, ("S_in", "W_out"))
+    as_driven = Crossing(1.0, lambda start, length: 13.0 if start == 0.0 else 3.0)
+
+    def stop(oncoming_m: float, crossing: Crossing) -> str:
+        snap = _snapshot(net, [ego, ("n", "N_in_0", oncoming_m, 13.0, ("N_in", "S_out"))], phase)
+        return stop_line(snap, 0, net, junctions, RouteTable(net), ParamResolver("ad_rss").arrays(snap), None,
+                         crossing).reason
+
+    assert stop(110.0, Crossing()) == "" and stop(110.0, as_driven) == "yield"
+    assert stop(150.0, Crossing()) == stop(150.0, as_driven) == ""
+    assert stop(60.0, Crossing()) == stop(60.0, as_driven) == "yield"

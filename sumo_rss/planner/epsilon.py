@@ -36,7 +36,7 @@ from .behavior.key_vehicles import KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
-from .junction_rules import stop_line
+from .junction_rules import Crossing, stop_line
 from .lanes import CURRENT, LEFT, RIGHT, lane_chains, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
@@ -157,14 +157,17 @@ class EpsilonPlanner:
         ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
         params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
         ego_params = _row(params, 0)
-        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving)
+        s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
+        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.reference_speed(
+            CURRENT, s_front + start, length, cfg.desired_speed))  # as the rollouts drive it through the junction
+        stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
         cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
-                       float(vehicles.s[0]) + 0.5 * float(vehicles.length[0]) + stop.distance, cut_in_gap, area,
+                       s_front + stop.distance, cut_in_gap, area,
                        owed_due)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)

@@ -5,7 +5,8 @@ The ego approaching a junction on its route stops at the stop line (the end of i
 - on **red**, and on **yellow** when it can still stop there at its RSS b_min (rss.md's signal rule);
 - to **yield** to a vehicle on a conflicting link that has priority over the ego's link (by the signals where
   both links are signalised and their states differ, else by the junction's static priority), unless that
-  vehicle reaches the conflict area only ``YIELD_MARGIN`` s or more after the ego would have cleared it;
+  vehicle reaches the conflict area only ``YIELD_MARGIN`` s or more after the ego would have cleared it, driving
+  as the planner drives it (:class:`Crossing`: its acceleration, its reference speed through the turn);
 - for **RSS**: while a vehicle stands before a conflict area of the ego's way (slower than ``MIN_SPEED``, or in
   front of the ego on RSS's virtual line and unable to stop before the area) and the ego's crossing, with that
   vehicle held, would make their pair unsafe (rss.md §4) somewhere: the rule keeping it safe is "in front", so
@@ -17,6 +18,7 @@ Vehicles on conflicting approaches are the junction's key vehicles for this rule
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,7 +35,7 @@ from ..sim.snapshot import WorldSnapshot
 STOP_RANGE = 150.0  # [m] stop lines farther ahead than this are not considered yet
 STOP_MARGIN = 1.0  # [m] the front bumper stops this far before the line
 YIELD_MARGIN = 2.0  # [s] time a prioritised vehicle must arrive after the ego has cleared their conflict area
-CLEAR_ACCEL = 1.5  # [m/s²] acceleration assumed for the ego crossing the junction
+CLEAR_ACCEL = 1.5  # [m/s²] acceleration assumed for the ego crossing the junction (without a Crossing)
 MIN_SPEED = 0.5  # [m/s] slower vehicles outside the junction are waiting, not arriving
 CROSSING_STEP = 0.5  # [m] spacing of the ego's positions checked against waiting vehicles
 RED, YELLOW = "rRs", "yYu"  # SUMO signal characters that stop the ego
@@ -51,19 +53,61 @@ class StopLine:
 
 
 NO_STOP = StopLine(np.inf, "")
+MIN_CAP = 0.5  # [m/s] the lowest crossing speed assumed (a reference speed of 0 would never clear)
 
 
-def _time_to_cover(v: float, distance: float, accel: float) -> float:
-    """[s] to drive ``distance`` [m] from speed ``v`` [m/s] at constant ``accel`` [m/s²]."""
-    return float((-v + np.sqrt(v * v + 2.0 * accel * max(distance, 0.0))) / accel)
+def _uncapped(start: float, length: float) -> float:
+    return np.inf
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """How the ego crosses, for the yield timing and the RSS check along its way: accelerating at ``accel``
+    [m/s²], at most at ``speed_cap(start, length)`` [m/s] over ``length`` m from ``start`` m past its front bumper
+    (the planner's reference speed there: limits and curvature; slower at once where it is lower). An ego assumed
+    to reach the junction faster than it drives started, found a car with priority would now arrive before it had
+    cleared, and stopped again (intersection_tls: 1.5 m/s² and no cap assumed; the ego accelerates at 1.0 m/s² and
+    turns left at 3 m/s)."""
+
+    accel: float = CLEAR_ACCEL
+    speed_cap: Callable[[float, float], float] = _uncapped
+
+    def segments(self, to_line: float, clear: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(length [m], speed cap [m/s]) of the way to the stop line ``to_line`` m ahead and of the rest of the
+        ``clear`` m to cover."""
+        to_line = max(to_line, 0.0)
+        beyond = max(clear - to_line, 0.0)
+        return ((to_line, max(self.speed_cap(0.0, to_line), MIN_CAP)),
+                (beyond, max(self.speed_cap(to_line, beyond), MIN_CAP)))
+
+    def time_to_cover(self, v: float, to_line: float, clear: float) -> float:
+        """[s] to cover ``clear`` m from speed ``v`` [m/s], the stop line ``to_line`` m ahead."""
+        elapsed = 0.0
+        for length, cap in self.segments(to_line, clear):
+            v = min(v, cap)
+            if length <= 0.0:
+                continue
+            top = min(cap, float(np.sqrt(v * v + 2.0 * self.accel * length)))
+            speeding_up = (top * top - v * v) / (2.0 * self.accel)
+            elapsed += (top - v) / self.accel + (length - speeding_up) / top
+            v = top
+        return elapsed
+
+    def speeds(self, v: float, covered: np.ndarray, to_line: float, clear: float) -> np.ndarray:
+        """[m/s] the ego's speed after ``covered`` [m] (accelerating from ``v``, within the caps)."""
+        (_, cap_line), (_, cap_beyond) = self.segments(to_line, clear)
+        return np.minimum(np.sqrt(v * v + 2.0 * self.accel * covered), np.where(covered < to_line, cap_line,
+                                                                                 cap_beyond))
 
 
 def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions: JunctionModel,
-              routes: RouteTable, params: RssParamArrays, ego_moving: RssParamArrays | None = None) -> StopLine:
+              routes: RouteTable, params: RssParamArrays, ego_moving: RssParamArrays | None = None,
+              crossing: Crossing = Crossing()) -> StopLine:
     """Whether and where the ego (snapshot row ``ego``) must stop before the junction ahead; ``params`` are every
     snapshot row's RSS parameters: the ego stops for yellow if it can at its b_min, and for anything if it can at
     its b_max. ``ego_moving`` [1]: the ego's parameters once it moves, for its crossing (default: its row of
-    ``params``, which ``ParamResolver.hold_standing`` gives a_acc = 0 while the ego stands)."""
+    ``params``, which ``ParamResolver.hold_standing`` gives a_acc = 0 while the ego stands); ``crossing``: how
+    it drives through the junction."""
     b_min, b_max = float(params.lon_brake_min[ego]), float(params.lon_brake_max[ego])
     lanes = network.lane_indices(snapshot.lane_id)
     next_edge = next_route_edge(routes.remaining(snapshot), network.lane_edge[lanes])
@@ -101,7 +145,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     t_foe = np.where(inside_area, 0.0, (start - f_pos) / np.maximum(f_v, MIN_SPEED))
     ego_pos = float(pos[mine[0]])
     clear = -ego_pos + float(np.max(junctions.area_end[own, fl])) + float(snapshot.length[ego])
-    t_clear = _time_to_cover(v, clear, CLEAR_ACCEL)
+    t_clear = crossing.time_to_cover(v, -ego_pos, clear)
     if np.any(prioritised & (inside_area | (arriving & (t_foe < t_clear + YIELD_MARGIN)))):
         return StopLine(distance, "yield", beyond)
     # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
@@ -113,7 +157,7 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     if np.any(waiting):
         x = np.arange(ego_pos, float(junctions.area_end[own, fl].max()) + float(snapshot.length[ego]) + CROSSING_STEP,
                       CROSSING_STEP)[:, None]  # [k, 1] the ego's front bumper along its crossing
-        v_x = np.sqrt(v * v + 2.0 * CLEAR_ACCEL * (x - ego_pos))
+        v_x = crossing.speeds(v, x - ego_pos, -ego_pos, clear)
         w = np.flatnonzero(waiting)
         crossing = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size),
                                 priority[w], junctions, ego_now if ego_moving is None else ego_moving, params)
