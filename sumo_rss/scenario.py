@@ -16,8 +16,9 @@ from typing import Any
 from .errors import ScenarioError
 from .planner.behavior.cost_weights import CostWeights
 from .road.topology import EdgeInfo, NetTopology, read_topology
+from .rss.params import PRESETS
+from .scenario_rss import RssSpec, read_rss
 from .sumo_home import vtype_attribute_names
-from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
 from .validation import TableReader, one_of, read_toml
 
 CAR_FOLLOW_MODELS = ("Krauss", "KraussPS", "KraussOrig1", "IDM", "EIDM", "ACC", "CACC", "W99", "Wiedemann")
@@ -125,15 +126,6 @@ class SumoSpec:
     time_to_teleport_s: float = 300.0  # 0 disables teleporting
     collision_mingap_factor: float = 0.0  # 0: a collision is a physical overlap
     extra_args: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
-class RssSpec:
-    preset: str = "ad_rss"
-    signal_rule: bool = True  # red-light and avoidable yellow-light entries are violations
-    role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
-    vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
-    hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
 
 
 @dataclass(frozen=True)
@@ -282,7 +274,7 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
         if clash is not None:
             raise ScenarioError(path, "ego.id", f"expected an id that is not a vehicle of flow {clash!r} "
                                                 f"(named {clash}.0, {clash}.1, ...)", ego.id)
-    rss = _read_rss(top.table("rss"), demand, ego)
+    rss = read_rss(top.table("rss"), demand, ego)
     outputs_t = top.table("outputs")
     outputs = OutputsSpec(fcd=outputs_t.boolean("fcd", False), collisions_xml=outputs_t.boolean("collisions_xml", True))
     outputs_t.finish()
@@ -510,44 +502,3 @@ def _check_depart_speed(t: TableReader, speed: float, edge: EdgeInfo, top_speed:
     if speed > edge.speed:
         raise t.error("depart_speed", f"expected at most {edge.speed:g} m/s, the speed limit of {edge.id!r} (SUMO "
                                       "refuses a faster departure)", speed)
-
-
-def _read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
-    preset = t.string("preset", "ad_rss", choices=PRESETS)
-    signal_rule = t.boolean("signal_rule", True)
-    hold_standing = t.boolean("hold_standing", False)
-    roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
-    vtype_ids = {v.id for v in demand.vtypes}
-    by_vtype = {}
-    for name, r in t.named_tables("vtypes").items():
-        if name not in vtype_ids:
-            raise t.error(f"vtypes.{name}", f"expected a vType of demand.vtypes ({', '.join(sorted(vtype_ids))})",
-                          name)
-        by_vtype[name] = _read_param_overrides(r)
-    t.finish()
-    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing)
-    problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
-    if problem is not None:
-        raise t.error(*problem)
-    return spec
-
-
-def rss_inconsistency(rss: RssSpec, demand: DemandSpec, ego: EgoSpec | None) -> tuple[str, str] | None:
-    """(key below [rss], message) of the first vehicle class whose RSS parameters the preset and overrides of
-    ``rss`` make inconsistent (each class is resolved once), or None."""
-    checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
-    for role, vtype_id, vt in checks:
-        try:
-            resolve_params(rss.preset, role, vtype_id, role_overrides=rss.role_overrides,
-                           vtype_overrides=rss.vtype_overrides, tau=vt.tau, decel=vt.decel)
-        except ValueError as exc:
-            key = f"vtypes.{vtype_id}" if vtype_id in rss.vtype_overrides else role
-            who = f"{role} vType {vtype_id!r}" if vtype_id else role
-            return key, f"inconsistent RSS parameters for {who} (preset {rss.preset!r}): {exc}"
-    return None
-
-
-def _read_param_overrides(t: TableReader) -> dict[str, float]:
-    out = {name: t.number(name) for name in PARAM_NAMES if t.has(name)}
-    t.finish()
-    return out

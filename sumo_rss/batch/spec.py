@@ -22,7 +22,8 @@ from pathlib import Path
 
 from ..errors import ScenarioError
 from ..rss.params import PRESETS
-from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario, rss_inconsistency
+from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario
+from ..scenario_rss import rss_inconsistency
 from ..validation import TableReader, read_toml
 
 GRID_KEYS = ("rss_preset", "demand_scale", "controller")

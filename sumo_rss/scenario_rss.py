@@ -1,0 +1,62 @@
+"""The ``[rss]`` table of a scenario file: preset, per-role and per-vType parameter overrides, signal rule and
+hold_standing, validated so that every vehicle class resolves to consistent RSS parameters (docs/scenarios.md)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
+from .validation import TableReader
+
+if TYPE_CHECKING:
+    from .scenario import DemandSpec, EgoSpec
+
+
+@dataclass(frozen=True)
+class RssSpec:
+    preset: str = "ad_rss"
+    signal_rule: bool = True  # red-light and avoidable yellow-light entries are violations
+    role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
+    vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
+    hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
+
+
+def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
+    preset = t.string("preset", "ad_rss", choices=PRESETS)
+    signal_rule = t.boolean("signal_rule", True)
+    hold_standing = t.boolean("hold_standing", False)
+    roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
+    vtype_ids = {v.id for v in demand.vtypes}
+    by_vtype = {}
+    for name, r in t.named_tables("vtypes").items():
+        if name not in vtype_ids:
+            raise t.error(f"vtypes.{name}", f"expected a vType of demand.vtypes ({', '.join(sorted(vtype_ids))})",
+                          name)
+        by_vtype[name] = _read_param_overrides(r)
+    t.finish()
+    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing)
+    problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
+    if problem is not None:
+        raise t.error(*problem)
+    return spec
+
+
+def rss_inconsistency(rss: RssSpec, demand: DemandSpec, ego: EgoSpec | None) -> tuple[str, str] | None:
+    """(key below [rss], message) of the first vehicle class whose RSS parameters the preset and overrides of
+    ``rss`` make inconsistent (each class is resolved once), or None."""
+    checks = [("background", v.id, v) for v in demand.vtypes] + ([("ego", None, ego.vehicle)] if ego else [])
+    for role, vtype_id, vt in checks:
+        try:
+            resolve_params(rss.preset, role, vtype_id, role_overrides=rss.role_overrides,
+                           vtype_overrides=rss.vtype_overrides, tau=vt.tau, decel=vt.decel)
+        except ValueError as exc:
+            key = f"vtypes.{vtype_id}" if vtype_id in rss.vtype_overrides else role
+            who = f"{role} vType {vtype_id!r}" if vtype_id else role
+            return key, f"inconsistent RSS parameters for {who} (preset {rss.preset!r}): {exc}"
+    return None
+
+
+def _read_param_overrides(t: TableReader) -> dict[str, float]:
+    out = {name: t.number(name) for name in PARAM_NAMES if t.has(name)}
+    t.finish()
+    return out
