@@ -544,3 +544,34 @@ def test_an_ego_id_that_is_not_in_the_fcd_is_named(tmp_path):
         warnings.simplefilter("error", UserWarning)
         warnings.filterwarnings("ignore", ".*vType car is not defined")
         audit_fcd(fcd, network, ParamResolver(), ego_ids=("a",))
+
+
+@pytest.mark.filterwarnings("ignore:.*vType car is not defined")
+def test_a_gzipped_fcd_reads_as_the_plain_one_and_a_cut_one_is_named(dense_run, tmp_path):
+    """SUMO writes ``fcd.xml.gz`` when asked for that name; it was reported as a malformed FCD."""
+    import gzip
+
+    data = (dense_run / "fcd.xml").read_bytes()
+    packed = tmp_path / "fcd.xml.gz"
+    packed.write_bytes(gzip.compress(data))
+    network = RoadNetwork.from_file(HIGHWAY)
+    plain, unpacked = FcdReader(dense_run / "fcd.xml", network), FcdReader(packed, network)
+    for a, b in zip(plain, unpacked, strict=True):
+        assert a.time == b.time and np.array_equal(a.ids, b.ids) and np.array_equal(a.x, b.x)
+    cut = tmp_path / "cut.xml.gz"
+    cut.write_bytes(gzip.compress(data)[: len(data) // 20])
+    with pytest.raises(FcdError, match=r"cut\.xml\.gz: malformed or truncated FCD after time step"):
+        list(FcdReader(cut, network))
+
+
+@pytest.mark.filterwarnings("ignore:.*vType car is not defined")
+def test_unevenly_spaced_time_steps_are_named_once(tmp_path):
+    """A missing step (or another output period) changes what is judged and the derived accelerations."""
+    fcd = tmp_path / "f.xml"
+    steps = "".join(f'<timestep time="{t:.2f}">{_fcd_vehicle("a", 20.0 + 3.0 * t)}</timestep>'
+                    for t in (0.0, 0.1, 0.3, 0.4, 0.7))
+    fcd.write_text(f"<fcd-export>{steps}</fcd-export>")
+    with pytest.warns(UserWarning, match=r"f\.xml: time step 0\.3 s comes 0\.2 s after the one before, where the "
+                                         r"file's steps were 0\.1 s apart") as record:
+        list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
+    assert sum("comes" in str(w.message) for w in record) == 1

@@ -24,7 +24,7 @@ from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
-from ..sumo_xml import output_elements
+from ..sumo_xml import MALFORMED, open_output, output_elements
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations
@@ -104,7 +104,7 @@ def read_collisions(path: Path) -> dict[float, list[CollisionEvent]]:
                 elem.get("victimType", ""), float(elem.get("colliderSpeed", 0)),
                 float(elem.get("victimSpeed", 0)), elem.get("type", ""), elem.get("lane", ""),
                 float(elem.get("pos", 0))))
-    except (ET.ParseError, ValueError) as exc:
+    except (*MALFORMED, ValueError) as exc:
         raise FcdError(f"{path}: not a readable SUMO collision-output file ({exc})") from exc
     return reports
 
@@ -122,25 +122,41 @@ class FcdReader:
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
+        self._step: float | None = None  # [s] the file's first step length
+        self._warned_step = False  # about unevenly spaced steps
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
             raise FcdError(f"{self.path}: FCD file not found")
         time = None
         try:
-            context = ET.iterparse(self.path, events=("start", "end"))
-            _, root = next(context)
-            if root.tag != "fcd-export":
-                raise FcdError(f"{self.path}: not an FCD file (root element <{root.tag}>, expected <fcd-export>)")
-            for event, elem in context:
-                if event == "start" and elem.tag == "timestep":
-                    time = elem.get("time")
-                elif event == "end" and elem.tag == "timestep":
-                    yield self._snapshot(elem, self._time_of(elem))
-                    root.clear()
-        except ET.ParseError as exc:
+            with open_output(self.path) as source:
+                context = ET.iterparse(source, events=("start", "end"))
+                _, root = next(context)
+                if root.tag != "fcd-export":
+                    raise FcdError(f"{self.path}: not an FCD file (root element <{root.tag}>, expected "
+                                   "<fcd-export>)")
+                for event, elem in context:
+                    if event == "start" and elem.tag == "timestep":
+                        time = elem.get("time")
+                    elif event == "end" and elem.tag == "timestep":
+                        yield self._snapshot(elem, self._time_of(elem))
+                        root.clear()
+        except MALFORMED as exc:
             where = f"after time step {time} s" if time is not None else "before the first time step"
             raise FcdError(f"{self.path}: malformed or truncated FCD {where} ({exc})") from exc
+
+    def _check_step(self, dt: float, time: float) -> None:
+        """Warn once per file when the time steps are not evenly spaced (steps missing, or another output
+        period): RSS is judged only at the steps written, and accelerations and lateral speeds derived from
+        differences span the longer step."""
+        if self._step is None:
+            self._step = dt
+        elif abs(dt - self._step) > 1e-6 and not self._warned_step:
+            self._warned_step = True
+            warnings.warn(f"{self.path}: time step {time:g} s comes {dt:g} s after the one before, where the file's "
+                          f"steps were {self._step:g} s apart (steps missing, or another output period): RSS is "
+                          "judged at the steps written only", stacklevel=3)
 
     def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, dt: float, time: float) -> None:
         """Warn once per file when a car moves sideways faster than any car can (``JUMP_SPEED``): SUMO changed its
@@ -211,6 +227,8 @@ class FcdReader:
         edge_lat = self.network.lane_offset[lane] + lat_pos
         accel, lat_speed = optional("acceleration"), optional("speedLat")
         dt = time - self._prev_time if self._prev_time is not None else None
+        if dt is not None:
+            self._check_step(dt, time)
         prev = [self._prev.get(v) for v in ids]
         seen = np.array([p is not None for p in prev], dtype=bool)
         prev_speed = np.array([p[0] if p else 0.0 for p in prev])

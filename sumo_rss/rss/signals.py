@@ -11,7 +11,6 @@ are treated as equal priority.
 from __future__ import annotations
 
 import warnings
-import xml.etree.ElementTree as ET
 from bisect import bisect_right
 from enum import Enum
 from pathlib import Path
@@ -22,7 +21,7 @@ import sumolib
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
-from ..sumo_xml import output_elements
+from ..sumo_xml import MALFORMED, output_elements
 from .intersection import next_route_edge
 from .situations import VehicleFrame
 
@@ -140,7 +139,7 @@ class SignalStates:
                 times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
                 times.append(float(elem.get("time", "nan")))
                 states.append(elem.get("state", ""))
-        except (ET.ParseError, ValueError) as exc:
+        except (*MALFORMED, ValueError) as exc:
             raise ValueError(f"{path}: not a readable SUMO signal-state file (SaveTLSStates output: {exc})") from exc
 
     def states(self, time: float) -> dict[str, str] | None:
