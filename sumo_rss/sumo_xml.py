@@ -30,3 +30,4 @@ def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]
         for event, elem in context:
             if event == "end" and elem.tag == tag:
                 yield elem
+                root.clear()  # read: dropped, so memory stays constant over a long output

@@ -167,8 +167,7 @@ class EpsilonPlanner:
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
-                       s_front + stop.distance, cut_in_gap, area,
-                       owed_due)
+                       s_front + stop.distance, cut_in_gap, area, owed_due)
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:
@@ -312,9 +311,9 @@ class EpsilonPlanner:
         """[s from now] per vehicle column: when the ego's response time ends in an open episode in which it owes
         that car (a car it follows) longitudinal braking (inf elsewhere; None: no such car among the key
         vehicles). The forward simulation brakes from then on while the pair is unsafe, as the guard will."""
-        if owed is None or not np.any(owed.must_brake & owed.same_direction):
+        rows = owed.must_brake & owed.same_direction if owed is not None else np.zeros(0, dtype=bool)
+        if not rows.any():
             return None
-        rows = owed.must_brake & owed.same_direction
         match = snapshot.ids[key.rows][:, None] == owed.other_id[rows][None, :]
         due = np.where(match, (owed.t_b[rows] + response_time - snapshot.time)[None, :], np.inf).min(axis=1,
                                                                                                    initial=np.inf)

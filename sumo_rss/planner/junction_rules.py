@@ -159,10 +159,10 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
                       CROSSING_STEP)[:, None]  # [k, 1] the ego's front bumper along its crossing
         v_x = crossing.speeds(v, x - ego_pos, -ego_pos, clear)
         w = np.flatnonzero(waiting)
-        crossing = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size),
-                                priority[w], junctions, ego_now if ego_moving is None else ego_moving, params)
+        along = _pair_safety(snapshot, ego, own, x, v_x, fl[w], cars[w], f_pos[w], np.zeros(w.size), priority[w],
+                             junctions, ego_now if ego_moving is None else ego_moving, params)
         on_way = area_distances(junctions, own, fl[w], x, float(snapshot.length[ego]))[1] > 0.0  # not yet left it
-        if np.any(on_way & ~crossing.safe):
+        if np.any(on_way & ~along.safe):
             return StopLine(distance, "rss", beyond)
     return NO_STOP
 
