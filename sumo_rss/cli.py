@@ -187,6 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
     audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
+    audit.add_argument("--quiet", action="store_true", help="no progress bar")
 
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
                           description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
@@ -263,7 +264,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     tasks = []
     for path in args.specs:
         try:
-            is_batch = "batch" in tomllib.loads(path.read_text(encoding="utf-8"))
+            is_batch = "batch" in tomllib.loads(path.read_text(encoding="utf-8-sig"))
         except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
             is_batch = False  # load_scenario reports what is wrong with it
         if is_batch:
@@ -303,12 +304,16 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_audit(args: argparse.Namespace) -> int:
     from xml.sax import SAXException
 
+    from tqdm import tqdm
+
     from .batch.runner import param_resolver
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
 
+    if not args.fcd.is_file():
+        raise FcdError(f"{args.fcd}: FCD file not found")
     if not args.net.is_file():
         raise FcdError(f"{args.net}: network file not found")
     try:  # before the vTypes, which SUMO loads on this network
@@ -337,9 +342,16 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         signal_rule = not args.no_signal_rule
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
-    result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
-                       collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                       run_id=run_id, signal_rule=signal_rule)
+    # Shown from 0.5 s on: not for a short audit, nor before an error in the file's first steps.
+    with tqdm(total=args.fcd.stat().st_size, unit="B", unit_scale=True, desc="audit", disable=args.quiet,
+              file=sys.stderr, delay=0.5) as bar:
+        def on_progress(done: int) -> None:
+            bar.update(done - bar.n)
+
+        result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
+                           collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
+                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress)
+        on_progress(bar.total)  # read to its end
     result.to_csv(args.out)
     print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "
           f"collisions -> {args.out}")

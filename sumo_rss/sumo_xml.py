@@ -16,6 +16,12 @@ def open_output(path: Path) -> IO[bytes]:
     return gzip.open(path, "rb") if Path(path).suffix == ".gz" else open(path, "rb")
 
 
+def bytes_consumed(source: IO[bytes]) -> int:
+    """How far reading ``source`` (from :func:`open_output`) has got into its file [bytes on disk: a gzipped
+    file's compressed bytes], for progress over the file's size."""
+    return (source.fileobj if isinstance(source, gzip.GzipFile) else source).tell()
+
+
 def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]:
     """The ``tag`` elements of the SUMO output ``path``, whose root must be ``root_tag``; ValueError naming the
     root found otherwise, one of MALFORMED for a damaged file."""

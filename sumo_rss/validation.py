@@ -24,11 +24,12 @@ _MISSING = object()
 
 
 def read_toml(path: Path, what: str) -> dict[str, Any]:
-    """The tables of a TOML file; ScenarioError naming the file if it is missing or not TOML."""
+    """The tables of a TOML file (UTF-8, with or without a byte-order mark, as Windows editors save it);
+    ScenarioError naming the file if it is missing or not TOML."""
     if not path.is_file():
         raise ScenarioError(path, "", f"{what} file not found", has_got=False)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
     except UnicodeDecodeError as exc:

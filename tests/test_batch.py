@@ -140,6 +140,20 @@ def test_a_preset_sweep_rechecks_the_egos_overrides_at_load(two_scenarios, valid
         load_batch(two_scenarios / "sweep.toml").tasks()
 
 
+def test_a_demand_scale_beyond_what_a_probability_flow_can_insert_is_refused(two_scenarios, valid_scenario):
+    """SUMO draws at most one vehicle per second from a probability flow: 0.6 x 2 was silently capped at 1."""
+    valid_scenario["demand"]["flows"][0] = {"id": "drawn", "route": ["hw0", "hw1", "hw2"], "probability": 0.6}
+    write_scenario(two_scenarios, valid_scenario, "drawn.toml")
+    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["drawn.toml"]\n[batch.grid]\n'
+                                               'demand_scale = [1.5]\n')
+    assert load_batch(two_scenarios / "scaled.toml").tasks()[0].spec.demand.flows[0].probability == pytest.approx(0.9)
+    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["drawn.toml"]\n[batch.grid]\n'
+                                               'demand_scale = [2.0]\n')
+    with pytest.raises(ScenarioError, match=r"drawn\.toml: demand\.flows\[0\]\.probability: demand_scale 2 makes "
+                                            r"it 1\.2 per second, above the at most 1 of a probability flow"):
+        load_batch(two_scenarios / "scaled.toml").tasks()
+
+
 def test_a_huge_seed_range_is_refused_before_it_is_built():
     with pytest.raises(ValueError, match=r"\(at most 100000 seeds\), got '0:99999999999'"):
         parse_seeds("0:99999999999")

@@ -556,8 +556,12 @@ def test_a_gzipped_fcd_reads_as_the_plain_one_and_a_cut_one_is_named(dense_run, 
     packed.write_bytes(gzip.compress(data))
     network = RoadNetwork.from_file(HIGHWAY)
     plain, unpacked = FcdReader(dense_run / "fcd.xml", network), FcdReader(packed, network)
+    read = []  # bytes of each file read at every step (the audit's progress over the file's size on disk)
     for a, b in zip(plain, unpacked, strict=True):
         assert a.time == b.time and np.array_equal(a.ids, b.ids) and np.array_equal(a.x, b.x)
+        read.append((plain.bytes_read, unpacked.bytes_read))
+    for done, size in zip(np.array(read).T, (len(data), packed.stat().st_size)):
+        assert np.all(np.diff(done) >= 0) and 0 < done[0] < size // 2 and 0.9 * size < done[-1] <= size
     cut = tmp_path / "cut.xml.gz"
     cut.write_bytes(gzip.compress(data)[: len(data) // 20])
     with pytest.raises(FcdError, match=r"cut\.xml\.gz: malformed or truncated FCD after time step"):

@@ -126,6 +126,14 @@ def test_the_valid_base_loads(tmp_path, valid_scenario):
     assert spec.demand.flows[0].veh_per_hour == 1200.0
 
 
+def test_a_file_saved_with_a_byte_order_mark_loads_as_without(tmp_path, valid_scenario):
+    """Windows editors save UTF-8 with a BOM; it read as 'not valid TOML' at line 1, column 1."""
+    plain = write_scenario(tmp_path, valid_scenario)
+    marked = tmp_path / "marked.toml"
+    marked.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    assert load_scenario(marked).to_toml_data() == load_scenario(plain).to_toml_data() | {"name": "marked"}
+
+
 def test_planner_cost_weights_reach_the_planner_and_survive_the_resolved_scenario(tmp_path, valid_scenario):
     from sumo_rss.planner.driver import planner_config
 

@@ -90,8 +90,16 @@ def apply_variant(spec: ScenarioSpec, values: dict) -> ScenarioSpec:
             raise ScenarioError(spec.source, f"rss.{problem[0]}", problem[1], has_got=False)
     if "demand_scale" in values:
         scale = values["demand_scale"]
+        over = next((i for i, f in enumerate(spec.demand.flows)
+                     if f.probability is not None and f.probability * scale > 1.0), None)
+        if over is not None:  # SUMO draws at most one vehicle per second from a probability flow
+            flow = spec.demand.flows[over]
+            raise ScenarioError(spec.source, f"demand.flows[{over}].probability",
+                                f"demand_scale {scale:g} makes it {flow.probability * scale:g} per second, above the "
+                                "at most 1 of a probability flow (give the flow as veh_per_hour to scale it further)",
+                                has_got=False)
         flows = tuple(replace(f, veh_per_hour=f.veh_per_hour * scale if f.veh_per_hour is not None else None,
-                              probability=min(1.0, f.probability * scale) if f.probability is not None else None)
+                              probability=f.probability * scale if f.probability is not None else None)
                       for f in spec.demand.flows)
         spec = replace(spec, demand=replace(spec.demand, flows=flows))
     if "controller" in values and spec.ego is not None:  # a scenario without an ego runs as it is

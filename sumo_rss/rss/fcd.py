@@ -11,7 +11,7 @@ import math
 import warnings
 import xml.etree.ElementTree as ET
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -24,7 +24,7 @@ from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
-from ..sumo_xml import MALFORMED, open_output, output_elements
+from ..sumo_xml import MALFORMED, bytes_consumed, open_output, output_elements
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations
@@ -124,6 +124,7 @@ class FcdReader:
         self._warned_jump = False  # about instantaneous lane changes
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
+        self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
@@ -140,7 +141,9 @@ class FcdReader:
                     if event == "start" and elem.tag == "timestep":
                         time = elem.get("time")
                     elif event == "end" and elem.tag == "timestep":
-                        yield self._snapshot(elem, self._time_of(elem))
+                        snapshot = self._snapshot(elem, self._time_of(elem))
+                        self.bytes_read = bytes_consumed(source)
+                        yield snapshot
                         root.clear()
         except MALFORMED as exc:
             where = f"after time step {time} s" if time is not None else "before the first time step"
@@ -255,11 +258,13 @@ class FcdReader:
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
-              run_id: str = "", signal_rule: bool = True) -> AuditResult:
+              run_id: str = "", signal_rule: bool = True,
+              on_progress: Callable[[int], None] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
-    defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`)."""
+    defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
+    how much of the FCD file (its size on disk) has been read."""
     reports = read_collisions(collisions) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -270,7 +275,10 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     contacts = ContactTracker()
     auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
     absent = set(ego_ids)  # ego ids not seen in the file yet
-    for snapshot in FcdReader(fcd, network, vehicles, ego_ids):
+    reader = FcdReader(fcd, network, vehicles, ego_ids)
+    for snapshot in reader:
+        if on_progress is not None:
+            on_progress(reader.bytes_read)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent:
             absent.difference_update(snapshot.ids.tolist())
