@@ -11,8 +11,9 @@ from conftest import NETWORKS
 from sumo_rss.planner.behavior.cost_weights import CostWeights
 from sumo_rss.planner.behavior.evaluation import breaks_lateral_response, leader_gap_for_cost, rss_penalty
 from sumo_rss.boxes import boxes_overlap
-from sumo_rss.planner.behavior.forward_sim import JunctionArea, Rollouts, SimSettings, Vehicles, leaders_ahead, \
-    prefix_tree, simulate, step_times
+from sumo_rss.planner.behavior.forward_sim import JunctionArea, Rollouts, SimSettings, Vehicles, prefix_tree, \
+    simulate, step_times
+from sumo_rss.planner.behavior.leaders import leaders_ahead
 from sumo_rss.planner.epsilon import BACKUP, EpsilonPlanner, PlannerConfig
 from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
 from sumo_rss.planner.road_frame import RoadFrame

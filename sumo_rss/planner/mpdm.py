@@ -12,7 +12,8 @@ import numpy as np
 from .behavior.dcp_tree import Lat, Policy
 from .behavior.evaluation import Evaluation
 from ..boxes import boxes_overlap
-from .behavior.forward_sim import LEADER_RANGE, SimResult, Vehicles
+from .behavior.forward_sim import SimResult, Vehicles
+from .behavior.leaders import LEADER_RANGE
 
 LANE_CHANGE_COST = 0.5
 SAFETY_INFLATION = 1.0  # [m]

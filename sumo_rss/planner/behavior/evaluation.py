@@ -20,7 +20,8 @@ from ...rss.situations import extent_across
 from ..road_frame import RoadFrame
 from .cost_weights import CostWeights
 from .dcp_tree import Lat, Policy
-from .forward_sim import LEADER_RANGE, SimResult, following_distance, hardest_braking
+from .forward_sim import SimResult
+from .leaders import LEADER_RANGE, following_distance, hardest_braking
 from .lane_change import laterally_safe
 
 

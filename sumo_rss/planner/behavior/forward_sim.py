@@ -22,15 +22,15 @@ import numpy as np
 
 from ...boxes import boxes_overlap
 from ...rss import formulas
-from ...rss.situations import extent_across
 from ..lanes import LEFT
 from ..road_frame import FrameCells, RoadFrame
 from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, idm_speed_command, lookahead, \
     pure_pursuit_steer
 from .lane_change import GapCars, lane_change_command
+from .leaders import following_distance, hardest_braking, lane_end_leader, leaders_ahead, occupied_band, \
+    stopped_leader
 
 NO_LEADER_GAP = 100.0  # [m] a free road is a virtual leader 100 + 100·v ahead at the own speed
-LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
 _IDM_FIELDS = tuple(IdmParams.__dataclass_fields__)
 
 
@@ -130,6 +130,58 @@ class SimResult:
     chain: np.ndarray  # [R, T+1, n] int: the lane chain each vehicle is in at each sample
 
 
+@dataclass(frozen=True, eq=False)
+class _Layer:
+    """The inputs of one layer of the tree for its G prefixes (:func:`prefix_tree`); arrays [G, n] unless noted."""
+
+    backup: np.ndarray  # [G] bool: the ego's emergency backup
+    tracked: np.ndarray  # int: the lane chain each vehicle tracks (the ego's: this layer's of its policy)
+    tracked_cells: np.ndarray  # flat indices of ``tracked`` into [3, G, n] arrays
+    v0: np.ndarray  # desired speeds [m/s]
+    idm: IdmParams  # fields [G, n]
+    idm_flat: np.ndarray  # [IDM fields, G·n]
+    ending: np.ndarray | None  # [G] the chain the ego tracked in the layer before (None: the same as now)
+
+    @classmethod
+    def of(cls, rollouts: Rollouts, layer: int, first: np.ndarray, v0_of_rollout: np.ndarray,
+           idm_of_rollout: np.ndarray) -> _Layer:
+        """Layer ``layer`` of the prefixes whose representative rollouts are ``first`` [G]."""
+        G, n = first.size, v0_of_rollout.shape[1]
+        tracked = rollouts.agent_chain[first].copy()
+        tracked[:, 0] = rollouts.ego_chain[first, layer]
+        idm = idm_of_rollout[:, first]  # [IDM fields, G, n]
+        ending = rollouts.ego_chain[first, layer - 1] if layer > 0 else None
+        if ending is not None and np.array_equal(ending, tracked[:, 0]):
+            ending = None
+        return cls(rollouts.ego_backup[first], tracked, tracked * (G * n) + np.arange(G * n).reshape(G, n),
+                   v0_of_rollout[first], IdmParams(*idm), idm.reshape(len(_IDM_FIELDS), G * n), ending)
+
+
+@dataclass(frozen=True, eq=False)
+class _Leaders:
+    """One step's leaders: bumper gaps [m] (inf: none) and speeds [m/s] on the tracked lane (``*_t``) and on the
+    current lane (``*_c``) [G, n], a lane's end and the ego's stop line taking a car's place where nearer; the cars
+    alone on each lane looked at (``free_gaps``, their columns ``leader``, n: none) [looks, G, n]; the ego's
+    current-lane leader without the waiting margin before a lane end (``gap_go``, ``v_go`` [G], used once a lane
+    change is going); and the ego's leader as its sample records it (``ego_*`` [G])."""
+
+    gap_t: np.ndarray
+    v_t: np.ndarray
+    gap_c: np.ndarray
+    v_c: np.ndarray
+    free_gaps: np.ndarray
+    leader: np.ndarray
+    gap_go: np.ndarray
+    v_go: np.ndarray
+    now_chain: np.ndarray  # [G, n] the lane chain each vehicle is in
+    stop_gap: np.ndarray  # [G] the ego's front bumper to its stop line [m] (inf: none)
+    ego_band: np.ndarray  # [G] [m] see :func:`occupied_band`
+    ego_gap: np.ndarray
+    ego_speed: np.ndarray
+    ego_is_car: np.ndarray  # bool: the recorded leader is a car (not a lane end or the stop line)
+    ego_leader: np.ndarray  # its column (n: none)
+
+
 def step_times(durations: tuple[float, ...], sim_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Sample times [s] (from 0) and the sample index ending each layer; each layer is cut into equal steps of
     at most ``sim_step``."""
@@ -172,19 +224,6 @@ def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.nda
         tree.append((first, previous[first], inverse))
         previous = inverse
     return tree
-
-
-def hardest_braking(rss_agents: Any) -> Any:
-    """The RSS parameters ([1] arrays) of the agent that can brake hardest. With ``SimSettings.rss_following`` the
-    ego keeps the RSS distance to whichever car it follows, taken at this worst case."""
-    return rss_agents.take(np.array([int(np.argmax(rss_agents.lon_brake_max))]))
-
-
-def following_distance(v: Any, v_lead: Any, rss_ego: Any, front_worst: Any, held_gap: Any = np.inf) -> np.ndarray:
-    """[m] The least bumper gap the ego at ``v`` keeps behind a car at ``v_lead`` with ``SimSettings.rss_following``:
-    the RSS safe distance, taken at ``front_worst`` (:func:`hardest_braking`), or the car's ``held_gap`` (a car
-    that cut in: the gap it left, see :func:`simulate`) where that is shorter."""
-    return np.minimum(formulas.lon_safe_distance_same_dir(v, v_lead, rss_ego, front_worst), held_gap)
 
 
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
@@ -244,24 +283,13 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                                                        state.curvature)))
             valid, barrier_steps = valid[parent], barrier_steps[parent]
             cells = FrameCells(cells.index[parent], cells.fraction[parent])
+            lay = _Layer.of(rollouts, layer, first, v0_of_rollout, idm_of_rollout)
             G = first.size
-            backup = rollouts.ego_backup[first]
-            tracked = rollouts.agent_chain[first].copy()
-            tracked[:, 0] = rollouts.ego_chain[first, layer]
-            tracked_cells = tracked * (G * n) + np.arange(G * n).reshape(G, n)  # [G, n] into flat [3, G, n]
-            v0 = v0_of_rollout[first]
-            idm = IdmParams(*idm_of_rollout[:, first])  # [G, n] fields
-            idm_flat, ego_flat = idm_of_rollout[:, first].reshape(len(_IDM_FIELDS), G * n), np.arange(G) * n
             layers_recorded.append((inverse, np.empty((samples[layer], 5, G, n)),
                                     np.full((samples[layer], 6, G), np.inf)))
-            # This step is also the last sample of the layer before: the ego's leader there is the one on the lane
-            # that layer tracked (a third look of the leader search where it differs).
-            ending = rollouts.ego_chain[first, layer - 1] if layer > 0 else None
-            if ending is not None and np.array_equal(ending, tracked[:, 0]):
-                ending = None
         s, d, v = state.x, state.y, state.speed
         if branching:
-            lane_slope = frame.slope(tracked, cells)  # direction of each car's tracked lane in the frame [rad]
+            lane_slope = frame.slope(lay.tracked, cells)  # direction of each car's tracked lane in the frame [rad]
         hit = boxes_overlap(s[:, :1], d[:, :1], state.heading[:, :1], *box_size[0], s[:, 1:], d[:, 1:],
                             state.heading[:, 1:], *box_size[1])
         valid = valid & ~hit.any(axis=1)
@@ -269,103 +297,43 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         offset = np.abs(d - centres)  # [3, G, n] from each chain's centre line [m]
         now_chain = frame.chain_of_offsets(offset, s)
         if branching:
-            gap = GapCars.find(centres, s, d, tracked[:, 0], settings.ego_radius, length, width, rss_agents)
-        # Leaders on the tracked lane and on the lane each vehicle is in now (one search for both), and at a
-        # layer's first step for the ego on the lane the layer before tracked.
-        looks, recorded = np.array([tracked, now_chain]), 0  # recorded: the look the sample records
-        if branching and ending is not None:
-            looks, recorded = np.concatenate([looks, looks[:1]]), 2
-            looks[2, :, 0] = ending
-        ego_band = _occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings)
-        free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
-                                                       (settings.agent_radius, settings.ego_radius), ego_band)
-        lead_gaps, lead_speeds = _lane_end(frame, looks, s, length, free_gaps, free_speeds, settings.lane_end_margin)
-        stop_gap = ego_stop_s - s[:, 0] - 0.5 * length[0]  # [G] the ego's front bumper to its stop line (inf: none)
-        if np.isfinite(ego_stop_s):
-            lead_gaps[:, :, 0], lead_speeds[:, :, 0] = _stopped_leader(stop_gap, lead_gaps[:, :, 0],
-                                                                       lead_speeds[:, :, 0])
-        (gap_t, gap_c), (v_t, v_c) = lead_gaps[:2], lead_speeds[:2]
-        lead_is_car = lead_gaps[recorded, :, 0] == free_gaps[recorded, :, 0]
+            gap = GapCars.find(centres, s, d, lay.tracked[:, 0], settings.ego_radius, length, width, rss_agents)
+        leaders = _find_leaders(frame, lay, state, offset, now_chain, branching, length, width, widest_agent,
+                                settings, ego_stop_s)
         _, vehicle_samples, ego_samples = layers_recorded[-1]
         sample = k - first_sample[layer]
         vehicle_samples[sample] = (s, d, state.heading, v, now_chain)
-        ego_samples[sample, :4] = (state.accel[:, 0], state.curvature[:, 0], lead_gaps[recorded, :, 0],
-                                   lead_speeds[recorded, :, 0])
-        ego_samples[sample, 5] = lead_is_car
+        ego_samples[sample, :4] = (state.accel[:, 0], state.curvature[:, 0], leaders.ego_gap, leaders.ego_speed)
+        ego_samples[sample, 5] = leaders.ego_is_car
         if holding:  # the leader's held gap, unless a lane end or a stop line took its place
-            ego_samples[sample, 4] = np.where(lead_is_car, held_gap[leader[recorded, :, 0]], np.inf)
+            ego_samples[sample, 4] = np.where(leaders.ego_is_car, held_gap[leaders.ego_leader], np.inf)
         if k == n_steps:
             break
         dt = t[k + 1] - t[k]
-        # The ego's own-lane leader without the waiting margin before a lane end (used once a change is going).
-        gap_go, v_go = _lane_end(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
-                                 free_speeds[1, :, :1], 0.0)
-        if np.isfinite(ego_stop_s):
-            gap_go[:, 0], v_go[:, 0] = _stopped_leader(stop_gap, gap_go[:, 0], v_go[:, 0])
         target_offset = np.zeros((G, n))
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
-        lane_target = frame.lane_ahead(centres.ravel().take(tracked_cells), lane_slope, ell)
+        lane_target = frame.lane_ahead(centres.ravel().take(lay.tracked_cells), lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
-        changing = (tracked[:, 0] != now_chain[:, 0]) & ~backup
+        changing = (lay.tracked[:, 0] != now_chain[:, 0]) & ~lay.backup
         any_changing = bool(changing.any())
         hold = evasive = np.zeros(G, dtype=bool)
+        evasive_v0 = None
         if any_changing:
-            lc_cmd, barrier, evasive_v0 = lane_change_command(frame, tracked[:, 0], state, cells, length, width, gap,
-                                                              idm, v0, settings, rss_ego, dt)
+            lc_cmd, barrier, evasive_v0 = lane_change_command(frame, lay.tracked[:, 0], state, cells, length, width,
+                                                              gap, lay.idm, lay.v0, settings, rss_ego, dt)
             # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
-            barrier &= np.abs(d[:, 0] - centres.ravel().take(tracked_cells[:, 0])) >= ego_band
+            barrier &= np.abs(d[:, 0] - centres.ravel().take(lay.tracked_cells[:, 0])) >= leaders.ego_band
             hold = changing & barrier
             evasive = changing & np.isfinite(evasive_v0)
             evasive_v0 = np.minimum(evasive_v0, rollouts.ego_speed_limit)  # into the gap, within the speed limit
         ev = np.flatnonzero(evasive)
-        # The leaders in one IDM call: on the tracked lane; on the current lane where that is another lane (a car
-        # changing lanes; elsewhere the two are the same); the ego's 'going' leader; and, where the ego speeds up
-        # evasively, the leader in its lane (the waiting or the going one) with the evasive IDM.
-        other = np.flatnonzero(tracked.ravel() != now_chain.ravel())
-        rows = np.concatenate([np.arange(G * n), other, ego_flat, ev * n])
-        gaps = np.concatenate([gap_t.ravel(), gap_c.ravel()[other], gap_go[:, 0],
-                               np.where(hold, gap_c[:, 0], gap_go[:, 0])[ev]])
-        v_leads = np.concatenate([v_t.ravel(), v_c.ravel()[other], v_go[:, 0],
-                                  np.where(hold, v_c[:, 0], v_go[:, 0])[ev]])
-        v_rows = v.ravel()[rows]
-        free = np.isinf(gaps)
-        desired = v0.ravel()[rows]
-        params = idm_flat.take(rows, axis=1)  # [IDM fields, rows]
-        if ev.size:
-            desired[-ev.size:] = evasive_v0[ev]
-            params[_IDM_FIELDS.index("s0"), -ev.size:] = settings.ego_idm.s0
-            params[_IDM_FIELDS.index("headway"), -ev.size:] = settings.evasive_headway
-            params[_IDM_FIELDS.index("accel"), -ev.size:] = settings.evasive_accel
-        following = np.zeros(rows.size)
-        if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance,
-            # also while it speeds up evasively (it may close in to T = 0.6 s, not into its leader's RSS distance)
-            car_go = gap_go[:, 0] == free_gaps[1, :, 0]
-            car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
-                                  car_go, np.where(hold, gap_c[:, 0] == free_gaps[1, :, 0], car_go)[ev]])
-            behind_car = (rows % n == 0) & car & ~free
-            held = np.inf
-            if holding:
-                lead_of_rows = np.concatenate([leader[0].ravel(), leader[1].ravel()[other], leader[1, :, 0],
-                                               leader[1, ev, 0]])
-                held = held_gap[lead_of_rows[behind_car]]
-            following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
-                                                       held)
-        if junction_area is not None:  # the ego behind its stop line: able to stop before the area beyond it
-            at_stop = (rows % n == 0) & ~free & (gaps == stop_gap[rows // n])
-            p = junction_area.params
-            following[at_stop] = np.maximum(following[at_stop], formulas.lon_reach(v_rows[at_stop], p, p.lon_brake_min)
-                                            + p.min_lon_gap - junction_area.beyond)
-        cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
-                                np.where(free, NO_LEADER_GAP + NO_LEADER_GAP * v_rows, gaps), IdmParams(*params), dt,
-                                following)
-        cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:G * n + other.size + G]
-        cmd_c = cmd_t.copy()
-        cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
+        cmd_t, cmd_c, cmd_go, cmd_ev = _idm_commands(lay, leaders, v, hold, ev, evasive_v0, dt, settings, rss_ego,
+                                                     front_worst, held_gap if holding else None, junction_area)
         speed_cmd = np.minimum(cmd_t, cmd_c)
         if any_changing:
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
             current_cap = np.where(hold, cmd_c[:, 0], np.maximum(cmd_c[:, 0], cmd_go))
-            current_cap[ev] = np.maximum(current_cap[ev], cmd[cmd.size - ev.size:])
+            current_cap[ev] = np.maximum(current_cap[ev], cmd_ev)
             speed_cmd[:, 0] = np.where(changing, np.minimum(lc_cmd, current_cap), speed_cmd[:, 0])
             barrier_steps = barrier_steps + hold
             target_offset[:, 0] = np.where(hold, d[:, 0] - lane_target[:, 0], 0.0)
@@ -373,7 +341,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
             owes = _owes_braking(s, d, v, t[k + 1], owed_brake_due, length, width, rss_ego, rss_agents)
             speed_cmd[:, 0] = np.where(owes, np.minimum(speed_cmd[:, 0], np.maximum(v[:, 0] - rss_ego.lon_brake_min
                                                                                     * dt, 0.0)), speed_cmd[:, 0])
-        speed_cmd[:, 0] = np.where(backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
+        speed_cmd[:, 0] = np.where(lay.backup, np.maximum(v[:, 0] - rollouts.backup_brake * dt, 0.0), speed_cmd[:, 0])
         # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame (a bend of
         # the lane, or of the frame's centre line beside a straight lane) the car turns with it at once, and pure
         # pursuit aims along the lane's direction here, correcting only the offset from it. Aiming at the lane
@@ -385,7 +353,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         max_accel = np.where(evasive[:, None], evasive_max_accel, limits.max_accel) if ev.size else None
         moved = bicycle_step(state, speed_cmd, steer, limits, dt, max_accel)
         cells = frame.locate(moved.x)
-        slope_reached = frame.slope(tracked, cells)
+        slope_reached = frame.slope(lay.tracked, cells)
         state = BicycleState(moved.x, moved.y, moved.heading + slope_reached - lane_slope, moved.speed, moved.accel,
                              moved.curvature)
         lane_slope = slope_reached
@@ -402,48 +370,91 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
                      lead_held_gap, lead_is_car == 1.0, barrier_steps[inverse], chain.astype(np.intp))
 
 
-def leaders_ahead(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.ndarray,
-                  length: np.ndarray, radii: tuple[float, float], ego_band: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
-    further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
-    search radius (``radii`` = (agents', the ego's); the ego is column 0). To the agents the ego is in a lane's
-    band where |d - centre(s)| < ``ego_band`` [G] [m] (default: the agents' radius): a body that sticks out
-    into their lane is in their way. For the agents, vehicles are sorted along s once per rollout, so the search
-    is O(n log n) instead of O(n²); the ego's leaders are found directly.
-    ``offset`` [chains, G, n]: |d − centre(s)| of every vehicle to every chain [m].
-    Returns the bumper gaps [m] (inf: none), the leaders' speeds and their columns (n: none), [m, G, n]."""
-    G, n = s.shape
-    cols = np.arange(n)
-    row_base = (np.arange(G) * n)[:, None]
-    sorted_flat = (row_base + np.argsort(s, axis=1, kind="stable")).ravel()  # flat [r, vehicle] by s per rollout
-    rank = np.empty(G * n, dtype=np.intp)
-    rank[sorted_flat] = np.arange(G * n) % n
-    rank = rank.reshape(G, n)
-    chains = offset.shape[0]
-    band = np.full((G, n), radii[0])
-    if ego_band is not None:
-        band[:, 0] = ego_band
-    member = (offset < band).reshape(chains, -1).take(sorted_flat, axis=1).reshape(chains, G, n)
-    # The first member strictly after each sorted position (n: none).
-    position = np.where(member, cols, n)
-    following = np.full((chains, G, n), n)
-    following[..., :-1] = np.minimum.accumulate(position[..., :0:-1], axis=-1)[..., ::-1]
-    lead = following.ravel().take((lanes * G + np.arange(G)[:, None]) * n + rank)  # [m, G, n]
-    found = lead < n
-    flat_j = np.where(found, sorted_flat.take(row_base + np.minimum(lead, n - 1)), row_base)
-    # The ego: the nearest centre ahead inside its wider band of each lane it looks at.
-    ds_ego = s - s[:, :1]  # [G, n]
-    near = (ds_ego > 0.0) & (ds_ego < LEADER_RANGE + length)
-    rows = np.arange(G)
-    in_band = offset[lanes[:, :, 0], rows] < radii[1]  # [m, G, n] within the ego's band of each lane it looks at
-    ego_lead = np.argmin(np.where(near & in_band, ds_ego, np.inf), axis=2)  # [m, G]
-    found[:, :, 0] = in_band[np.arange(lanes.shape[0])[:, None], rows, ego_lead] & near[rows, ego_lead]
-    flat_j[:, :, 0] = np.where(found[:, :, 0], row_base[:, 0] + ego_lead, row_base[:, 0])
-    j = flat_j - row_base
-    ds = s.ravel().take(flat_j) - s
-    ahead = found & (ds > 0.0) & (ds < LEADER_RANGE + length[j])
-    return np.where(ahead, ds - 0.5 * (length + length[j]), np.inf), v.ravel().take(flat_j), np.where(ahead, j, n)
+def _find_leaders(frame: RoadFrame, lay: _Layer, state: BicycleState, offset: np.ndarray, now_chain: np.ndarray,
+                  branching: bool, length: np.ndarray, width: np.ndarray, widest_agent: float, settings: SimSettings,
+                  ego_stop_s: float) -> _Leaders:
+    """The leaders on the tracked lane and on the lane each vehicle is in now (one search for both), and at a
+    layer's first step (``branching``) for the ego on the lane the layer before tracked: that step is also the
+    layer before's last sample, whose leader is the one on the lane that layer tracked. ``offset`` [3, G, n]:
+    every vehicle's |d − centre| to every chain [m]."""
+    s, v = state.x, state.speed
+    looks, recorded = np.array([lay.tracked, now_chain]), 0  # recorded: the look the sample records
+    if branching and lay.ending is not None:
+        looks, recorded = np.concatenate([looks, looks[:1]]), 2
+        looks[2, :, 0] = lay.ending
+    ego_band = occupied_band(state.heading[:, 0], length[0], width[0], widest_agent, settings.agent_radius)
+    free_gaps, free_speeds, leader = leaders_ahead(s, v, offset, looks, length,
+                                                   (settings.agent_radius, settings.ego_radius), ego_band)
+    lead_gaps, lead_speeds = lane_end_leader(frame, looks, s, length, free_gaps, free_speeds,
+                                             settings.lane_end_margin)
+    gap_go, v_go = lane_end_leader(frame, now_chain[:, :1], s[:, :1], length[:1], free_gaps[1, :, :1],
+                                   free_speeds[1, :, :1], 0.0)
+    stop_gap = ego_stop_s - s[:, 0] - 0.5 * length[0]
+    if np.isfinite(ego_stop_s):
+        lead_gaps[:, :, 0], lead_speeds[:, :, 0] = stopped_leader(stop_gap, lead_gaps[:, :, 0], lead_speeds[:, :, 0])
+        gap_go[:, 0], v_go[:, 0] = stopped_leader(stop_gap, gap_go[:, 0], v_go[:, 0])
+    ego_gap = lead_gaps[recorded, :, 0]
+    return _Leaders(lead_gaps[0], lead_speeds[0], lead_gaps[1], lead_speeds[1], free_gaps, leader, gap_go[:, 0],
+                    v_go[:, 0], now_chain, stop_gap, ego_band, ego_gap, lead_speeds[recorded, :, 0],
+                    ego_gap == free_gaps[recorded, :, 0], leader[recorded, :, 0])
+
+
+def _idm_commands(lay: _Layer, leaders: _Leaders, v: np.ndarray, hold: np.ndarray, ev: np.ndarray,
+                  evasive_v0: np.ndarray | None, dt: float, settings: SimSettings, rss_ego: Any, front_worst: Any,
+                  held_gap: np.ndarray | None, junction_area: JunctionArea | None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Speed commands [m/s] of one step's leaders in one IDM call: every vehicle behind its leader on the tracked
+    lane ``cmd_t`` and on its current lane ``cmd_c`` [G, n] (the same where the two lanes are one); the ego behind
+    its 'going' leader ``cmd_go`` [G]; and, for the rollouts ``ev`` whose ego speeds up evasively (desired speed
+    ``evasive_v0`` [G]), behind the leader in its lane (the waiting one where ``hold`` [G], else the going one) with
+    the evasive IDM, ``cmd_ev`` [ev]. The ego keeps at least the RSS distance behind a car (``front_worst``, None:
+    off; ``held_gap`` by leader column, None: none) and stays able to stop before the ``junction_area``."""
+    G, n = v.shape
+    gap_t, gap_c, v_t, v_c = leaders.gap_t, leaders.gap_c, leaders.v_t, leaders.v_c
+    gap_go, v_go, free_gaps, leader = leaders.gap_go, leaders.v_go, leaders.free_gaps, leaders.leader
+    # Rows: every vehicle on its tracked lane; on its current lane where that is another lane (a car changing
+    # lanes); the ego's 'going' leader; the evasive ones.
+    other = np.flatnonzero(lay.tracked.ravel() != leaders.now_chain.ravel())
+    rows = np.concatenate([np.arange(G * n), other, np.arange(G) * n, ev * n])
+    gaps = np.concatenate([gap_t.ravel(), gap_c.ravel()[other], gap_go,
+                           np.where(hold, gap_c[:, 0], gap_go)[ev]])
+    v_leads = np.concatenate([v_t.ravel(), v_c.ravel()[other], v_go,
+                              np.where(hold, v_c[:, 0], v_go)[ev]])
+    v_rows = v.ravel()[rows]
+    free = np.isinf(gaps)
+    desired = lay.v0.ravel()[rows]
+    params = lay.idm_flat.take(rows, axis=1)  # [IDM fields, rows]
+    if ev.size:
+        desired[-ev.size:] = evasive_v0[ev]
+        params[_IDM_FIELDS.index("s0"), -ev.size:] = settings.ego_idm.s0
+        params[_IDM_FIELDS.index("headway"), -ev.size:] = settings.evasive_headway
+        params[_IDM_FIELDS.index("accel"), -ev.size:] = settings.evasive_accel
+    following = np.zeros(rows.size)
+    if front_worst is not None:  # the ego behind a car (not a lane end or stop line): at least the RSS distance,
+        # also while it speeds up evasively (it may close in to T = 0.6 s, not into its leader's RSS distance)
+        car_go = gap_go == free_gaps[1, :, 0]
+        car = np.concatenate([gap_t.ravel() == free_gaps[0].ravel(), (gap_c.ravel() == free_gaps[1].ravel())[other],
+                              car_go, np.where(hold, gap_c[:, 0] == free_gaps[1, :, 0], car_go)[ev]])
+        behind_car = (rows % n == 0) & car & ~free
+        held = np.inf
+        if held_gap is not None:
+            lead_of_rows = np.concatenate([leader[0].ravel(), leader[1].ravel()[other], leader[1, :, 0],
+                                           leader[1, ev, 0]])
+            held = held_gap[lead_of_rows[behind_car]]
+        following[behind_car] = following_distance(v_rows[behind_car], v_leads[behind_car], rss_ego, front_worst,
+                                                   held)
+    if junction_area is not None:  # the ego behind its stop line: able to stop before the area beyond it
+        at_stop = (rows % n == 0) & ~free & (gaps == leaders.stop_gap[rows // n])
+        p = junction_area.params
+        following[at_stop] = np.maximum(following[at_stop], formulas.lon_reach(v_rows[at_stop], p, p.lon_brake_min)
+                                        + p.min_lon_gap - junction_area.beyond)
+    cmd = idm_speed_command(v_rows, desired, np.where(free, v_rows, v_leads),
+                            np.where(free, NO_LEADER_GAP + NO_LEADER_GAP * v_rows, gaps), IdmParams(*params), dt,
+                            following)
+    cmd_t, cmd_go = cmd[:G * n].reshape(G, n), cmd[G * n + other.size:G * n + other.size + G]
+    cmd_c = cmd_t.copy()
+    cmd_c.ravel()[other] = cmd[G * n:G * n + other.size]
+    return cmd_t, cmd_c, cmd_go, cmd[cmd.size - ev.size:]
 
 
 def _owes_braking(s: np.ndarray, d: np.ndarray, v: np.ndarray, t_end: float, due: np.ndarray, length: np.ndarray,
@@ -463,16 +474,6 @@ def _owes_braking(s: np.ndarray, d: np.ndarray, v: np.ndarray, t_end: float, due
     return np.any((s[:, cols] > s[:, :1]) & lon_unsafe & lat_unsafe, axis=1)
 
 
-def _occupied_band(heading: np.ndarray, length: float, width: float, widest_agent: float, settings: SimSettings
-                   ) -> np.ndarray:
-    """[m] per rollout: how far from a lane's centre line the ego's centre (``heading`` against it, ``length`` x
-    ``width``) may be and still be in the way of an agent keeping to that centre line (its body, turned as it is,
-    reaches half the widest agent's width from it), at least the agents' own band. A car stopped at an angle
-    half-way into a lane blocks it."""
-    reach = 0.5 * extent_across(length, width, np.cos(heading), np.sin(heading))
-    return np.maximum(settings.agent_radius, reach + 0.5 * widest_agent)
-
-
 def _idm_per_rollout(idm: IdmParams, ego_spacing_scale: np.ndarray, n: int) -> np.ndarray:
     """Per-vehicle IDM parameters ``idm`` ([n] fields) for every rollout as one [fields, R, n] array (fields in
     IdmParams' order), the ego's s0 and T times its rollout's ``ego_spacing_scale`` [R]."""
@@ -481,17 +482,3 @@ def _idm_per_rollout(idm: IdmParams, ego_spacing_scale: np.ndarray, n: int) -> n
     scaled = replace(idm, s0=idm.s0[None, :] * scale, headway=idm.headway[None, :] * scale)
     return np.stack([np.broadcast_to(np.asarray(getattr(scaled, name), dtype=float), scale.shape)
                      for name in _IDM_FIELDS])
-
-
-def _lane_end(frame: RoadFrame, chain: np.ndarray, s: np.ndarray, length: np.ndarray, gap: np.ndarray,
-              v_lead: np.ndarray, margin: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A lane that ends is a stopped leader ``margin`` m before its end (new arrays: the caller writes into them)."""
-    if np.isinf(frame.end_s).all():  # no lane of the frame ends (the common case: skip the look-ups)
-        return gap.copy(), v_lead.copy()
-    return _stopped_leader(frame.end_s[chain] - margin - s - 0.5 * length[None, :], gap, v_lead)
-
-
-def _stopped_leader(stop_gap: np.ndarray, gap: np.ndarray, v_lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(gap, leader speed) with a standing obstacle ``stop_gap`` [m] ahead taking the leader's place where nearer."""
-    closer = stop_gap < gap
-    return np.where(closer, stop_gap, gap), np.where(closer, 0.0, v_lead)
