@@ -96,6 +96,28 @@ def test_a_lateral_response_that_has_come_to_rest_must_stay_at_rest():
         ("lat-speed-envelope", 0.0, pytest.approx(0.3))
 
 
+def test_the_lateral_tolerance_stops_growing_once_the_envelope_has_reached_zero():
+    """Same cut-in, a holding still sideways; it then moves towards b at 1 m/s (a SUMO lane change's ~1.17 m/s) at
+    τ = 2 s or τ = 22 s. The envelope from u0 = 0.5 reaches 0 at ρ + (0.5 + 0.2·1)/0.8 = 1.875 s, so the
+    tolerance is 0.05 m/s²·min(τ, 1.875 s) ≤ 0.094 m/s either way: a violation by 1 m/s both times (the tolerance
+    used to be 0.05·τ, 1.1 m/s at τ = 22 s, and let the later move pass)."""
+    for start in (2.0, 22.0):
+        tracker = ResponsibilityTracker()
+        _step(tracker, 0.0, _pair(False, True))
+        _step(tracker, 0.1, _pair(False, False, v_lat_a=0.5))
+        moving = round(0.1 + start, 10)
+        k = 2
+        while (t := round(k * DT, 10)) <= moving + 0.15:
+            _step(tracker, t, _pair(False, False, v_lat_a=1.0 if t >= moving - 1e-9 else 0.0))
+            k += 1
+        tracker.finish()
+        (episode,) = tracker.episode_records
+        assert episode["responsible"] == "a", start
+        (violation,) = tracker.violation_records
+        assert (violation["constraint"], violation["bound"], violation["worst_actual"], violation["t_start_s"]) == \
+            ("lat-speed-envelope", 0.0, pytest.approx(1.0), pytest.approx(moving)), start
+
+
 def _road_and_junction(road_rules: int, junction_rules: int) -> PairSituations:
     """One pair in two situations: a behind b on a road, and a yielding to b (b has priority) at a conflict area."""
     z, no = np.zeros(2), np.zeros(2, dtype=bool)

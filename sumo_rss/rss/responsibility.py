@@ -311,7 +311,10 @@ class ResponsibilityTracker:
                                  lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars]))
         e.lat_settled = e.lat_settled | (judged[:, None] & (tau >= rho - TIME_EPS) & (u <= 0.0))
         tolerance = np.full(actual.shape, EPS_ACCEL)
-        tolerance[..., 3] = EPS_ACCEL * tau  # a velocity envelope: the acceleration tolerance, integrated
+        # The velocity envelope's tolerance: the acceleration tolerance integrated while the envelope changes,
+        # up to when it reaches 0; from then on "stay ≤ 0" does not loosen with time.
+        settles = rho + np.maximum(e.u0 + p.lat_accel_max[cars] * rho, 0.0) / p.lat_brake_min[cars]
+        tolerance[..., 3] = EPS_ACCEL * np.minimum(tau, settles)
         excess = sign * (actual - bound)
         violating = applies & judged[:, None, None] & (excess > tolerance)
         self._roll_violations(violating, actual, bound, excess, t)
