@@ -8,13 +8,17 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import libsumo
+import numpy as np
 import pandas as pd
 import pytest
 
 from conftest import NETWORKS, audit_commanded, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.road.network import RoadNetwork
-from sumo_rss.rss.auditor import AuditResult
+from sumo_rss.rss.auditor import AuditResult, Auditor, ParamResolver
+from sumo_rss.rss.formulas import lon_reach
+from sumo_rss.rss.params import RssParams
+from sumo_rss.sim.snapshot import WorldSnapshot
 
 DT = 0.1  # [s]
 
@@ -195,3 +199,42 @@ def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path, rout
                                                                "runner": "signal-red-light"}
     assert signal.set_index("vehicle_id").worst_actual.to_dict() == pytest.approx({"early": 8.0, "runner": 10.0})
     assert (signal.episode_key == "").all()
+
+
+def test_the_area_a_pair_becomes_dangerous_in_decides_who_yields(tmp_path):
+    """An offline audit without routes: every link of a car's lane is a possible path, and e (E_in, westbound,
+    13.89 m/s) and w (W_in, standing before its line) meet in five conflict areas. At 0 s every area is safe by
+    'able to stop'; the kept (most critical) one is J:4x11 (e straight x w left: w yields, margin 0.2 m), while in
+    J:5x10 (e left x w straight: e yields) e's margin is 0.5 m (D = 13.89 + 1.75 + 17.39²/8 = 53.44 m, +λ 0.2 m).
+    At 0.1 s e is 1.39 m nearer: J:5x10 is dangerous (margin -0.89 m), and e, which had to yield there, owes
+    braking; it keeps 13.89 m/s and is responsible from t_b + ρ + 0.1 s. The duties used to come from J:4x11
+    (w yields: w owed braking, nobody responsible). With w's route known (J:5x10 alone) the audit is the same."""
+    network = RoadNetwork.from_file(NETWORKS / "intersection_priority" / "intersection_priority.net.xml")
+    p, v = RssParams(), 13.89
+    # Bumpers placed so that w's margin in J:4x11 is 0.2 m and e's in J:5x10 0.5 m (each area begins 0.2 m into
+    # the car's link, the links begin 7.2 m from the junction's centre).
+    d_w = float(lon_reach(0.0, p, p.lon_brake_min))
+    d_e = float(lon_reach(v, p, p.lon_brake_min)) + 0.3
+
+    def snapshot(t: float, routes) -> WorldSnapshot:
+        ahead = d_e - v * t
+        return WorldSnapshot(
+            time=t, ids=np.array(["e", "w"]), x=np.array([7.2 + ahead, -7.2 - d_w]), y=np.array([1.6, -1.6]),
+            heading=np.array([np.pi, 0.0]), speed=np.array([v, 0.0]), accel=np.zeros(2), lat_speed=np.zeros(2),
+            length=np.full(2, 5.0), width=np.full(2, 1.8), lane_id=np.array(["E_in_0", "W_in_0"]),
+            edge_id=np.array(["E_in", "W_in"]), lane_index=np.zeros(2, int),
+            lane_pos=np.array([292.8 - ahead, 292.8 - d_w]), lat_pos=np.zeros(2),
+            vclass=np.array(["background"] * 2), vtype=np.array(["car"] * 2), signals=np.zeros(2, int),
+            route_index=np.zeros(2, int), route_edges=routes)
+
+    for routes in (None, ((), ("W_in", "J_E"))):
+        auditor = Auditor(network, ParamResolver("ad_rss"), signal_rule=False)
+        kept = [auditor.observe(snapshot(round(0.1 * k, 2), routes)).area[-1] for k in range(17)]
+        result = auditor.finish()
+        assert kept[:2] == (["J:4x11", "J:5x10"] if routes is None else ["J:5x10", "J:5x10"])
+        (episode,) = result.episodes.itertuples()
+        assert (episode.conflict_area, episode.t_b_s, episode.trigger, episode.owed_a, episode.owed_b,
+                episode.responsible) == ("J:5x10", 0.1, "able-to-stop", "int:brake-min", "", "a")
+        (violation,) = result.violations.itertuples()
+        assert (violation.vehicle_id, violation.constraint, violation.bound, violation.t_start_s) == \
+            ("e", "lon-brake-after-response-time", -4.0, 1.2)

@@ -18,7 +18,7 @@ from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
-from .responsibility import OwedResponses, ResponsibilityTracker, StepInput
+from .responsibility import AREA_KEY, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
@@ -132,6 +132,7 @@ class Auditor:
         avoidable yellow-light entries as violations (docs/rss.md)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
+        self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self._traces: list[tuple] = []  # per traced step: (episode keys, time, gap arrays...)
@@ -154,20 +155,26 @@ class Auditor:
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
                                            horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0) \
             if self.junctions.conflicts else None
+        areas = area_number = None
         if crossing is not None and len(crossing):
             crossing_keys = ((uid[crossing.a] << 32) | uid[crossing.b]) | INTERSECTION_KEY
+            number = np.searchsorted(self._area_ids, crossing.area.astype(str))
             # Several conflict areas per pair: the pair is dangerous if any is; keep the most critical one
-            # (dangerous first, then the yielding car closest to needing to stop).
-            order = np.lexsort((crossing.lon_gap - crossing.lon_d_min, ~crossing.dangerous, crossing_keys))
+            # (dangerous first, then the yielding car closest to needing to stop), and remember every area's rules.
+            margin = crossing.lon_gap - crossing.lon_d_min
+            order = np.lexsort((margin, ~crossing.dangerous, crossing_keys))
             first = order[np.r_[True, crossing_keys[order][1:] != crossing_keys[order][:-1]]]
+            areas = _area_rules(crossing_keys, number, crossing, margin)
             situations = PairSituations.concat([road, crossing.take(first)])
             keys = np.concatenate([road_keys, crossing_keys[first]])
+            area_number = np.concatenate([np.full(len(road), -1), number[first]])
         else:
             situations, keys = road, road_keys
         new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
-            vclass=snapshot.vclass, accel=snapshot.accel, params=params, new_vehicle=new_vehicle))
+            vclass=snapshot.vclass, accel=snapshot.accel, params=params, new_vehicle=new_vehicle, areas=areas,
+            area_number=area_number))
         if self.trace_class is not None:
             self._trace(snapshot.time, keys, situations)
         if self._signal_rule is not None:
@@ -230,3 +237,14 @@ class Auditor:
         if self.trace_class is not None:
             pair_states = self._pair_states()
         return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states)
+
+
+def _area_rules(keys: np.ndarray, number: np.ndarray, crossing: PairSituations, margin: np.ndarray) -> AreaRules:
+    """Every (pair, conflict area)'s rules and priority (the most critical row where a pair meets in one area
+    through several pairs of links), sorted for look-ups."""
+    area_keys = np.empty(len(keys), dtype=AREA_KEY)
+    area_keys["pair"], area_keys["area"] = keys, number
+    order = np.lexsort((margin, ~crossing.dangerous, number, keys))
+    ordered = area_keys[order]
+    first = order[np.r_[True, ordered[1:] != ordered[:-1]]]
+    return AreaRules(area_keys[first], crossing.safe_rules[first], crossing.priority[first])

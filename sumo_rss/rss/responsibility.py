@@ -48,6 +48,25 @@ class StepInput:
     accel: np.ndarray  # [m/s²] per snapshot row
     params: RssParamArrays  # per snapshot row
     new_vehicle: np.ndarray  # bool per snapshot row: not seen at the previous step
+    # Intersections: every conflict area's rules of every crossing pair (not only the row kept per pair), and the
+    # number of the area of each row of ``situations`` (-1: a road situation).
+    areas: AreaRules | None = None
+    area_number: np.ndarray | None = None
+
+
+AREA_KEY = np.dtype([("pair", np.int64), ("area", np.int64)])
+
+
+@dataclass(frozen=True, eq=False)
+class AreaRules:
+    """The RULE_* bits and priority of one step in every conflict area of every crossing pair, sorted by ``keys``
+    (AREA_KEY: pair key, area number). A pair is kept as one situation, in its most critical area; when it
+    becomes dangerous in an area, what held in that area at the step before t_b decides who owes what (rss.md
+    §5), not what held in the area that was most critical then."""
+
+    keys: np.ndarray
+    rules: np.ndarray  # int8
+    priority: np.ndarray  # int8
 
 
 @dataclass
@@ -138,6 +157,7 @@ class ResponsibilityTracker:
         self._prev_keys = np.zeros(0, dtype=np.int64)
         self._prev_rules = np.zeros(0, dtype=np.int8)
         self._prev_priority = np.zeros(0, dtype=np.int8)
+        self._prev_areas: AreaRules | None = None
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._ended_now: dict[int, dict] = {}  # pair key → record of an episode that ended at the current step
@@ -177,6 +197,7 @@ class ResponsibilityTracker:
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
         self._prev_keys = keys
+        self._prev_areas = step.areas
         self._prev_rules = sit.safe_rules[order]
         self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
         self._last_time = step.time
@@ -237,6 +258,15 @@ class ResponsibilityTracker:
         seen, pos = _lookup(self._prev_keys, keys)
         prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         prev_priority = self._prev_priority[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
+        if self._prev_areas is not None and len(self._prev_areas.keys) and step.area_number is not None:
+            # A crossing pair: what held in the area it is dangerous in now.
+            area_keys = np.empty(len(keys), dtype=AREA_KEY)
+            area_keys["pair"], area_keys["area"] = keys, step.area_number[rows]
+            found, at = _lookup(self._prev_areas.keys, area_keys)
+            found &= step.area_number[rows] >= 0
+            seen = seen | found
+            prev_rules = np.where(found, self._prev_areas.rules[at], prev_rules)
+            prev_priority = np.where(found, self._prev_areas.priority[at], prev_priority)
         appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
         duties = duties_at_threshold(sit, rows, prev_rules, prev_priority, seen, appeared)
         # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
