@@ -451,6 +451,24 @@ def test_instantaneous_lane_changes_are_named_once(dense_run, tmp_path):
     with pytest.warns(UserWarning, match=r"jumps\.xml: .* moves 3\.\d+ m sideways in one 0\.1 s step") as caught:
         list(FcdReader(tmp_path / "jumps.xml", network, vehicles))
     assert len([w for w in caught if "sideways" in str(w.message)]) == 1
+    # SUMO writes speedLat 0 at such a lane change; without speedLat in the FCD the derived lateral speed is 0 there
+    # too (not 3.2 m / 0.1 s = 32 m/s, which opened a lateral episode at every lane change): the two files of one
+    # run audit alike.
+    with_lat = tmp_path / "with_lat.xml"
+    subprocess.run([str(sumo_tool("sumo")), "--net-file", str(HIGHWAY), "--route-files",
+                    str(dense_run / "routes.rou.xml"), "--step-length", "0.1", "--end", "60", "--no-step-log", "true",
+                    "--no-warnings", "true", "--fcd-output", str(with_lat), "--fcd-output.attributes",
+                    "x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat"], check=True, capture_output=True)
+    text = with_lat.read_text()
+    assert 'speedLat="0.00"' in text and 'speedLat="' not in text.replace('speedLat="0.00"', "")
+    without_lat = tmp_path / "without_lat.xml"
+    without_lat.write_text(text.replace(' speedLat="0.00"', ""))
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*sideways")
+        audits = [audit_fcd(f, network, ParamResolver(), vehicles=vehicles) for f in (with_lat, without_lat)]
+    assert len(audits[0].episodes) > 100
+    for name in ("episodes", "violations"):
+        pd.testing.assert_frame_equal(getattr(audits[0], name), getattr(audits[1], name))
 
 
 def _crash_with_sumo_defaults(folder) -> tuple:

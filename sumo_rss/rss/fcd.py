@@ -163,14 +163,14 @@ class FcdReader:
 
     def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, dt: float, time: float) -> None:
         """Warn once per file when a car moves sideways faster than any car can (``JUMP_SPEED``): SUMO changed its
-        lane in one step, so lateral speeds at such steps are not physical."""
+        lane in one step (its lateral speed there is taken as 0, as SUMO's own ``speedLat``)."""
         jumps = np.flatnonzero(np.abs(lat_moved) > JUMP_SPEED * dt)
         if jumps.size and not self._warned_jump:
             self._warned_jump = True
             k = int(jumps[0])
             warnings.warn(f"{self.path}: {ids[k]} moves {abs(lat_moved[k]):.2f} m sideways in one {dt:g} s step at "
                           f"{time:g} s: its lane changes are instantaneous (SUMO without --lanechange.duration or "
-                          "--lateral-resolution), and the lateral speeds of such steps are not physical",
+                          "--lateral-resolution); at such steps the lateral speed is taken as 0, as SUMO reports it",
                           stacklevel=3)
 
     def _time_of(self, step: ET.Element) -> float:
@@ -241,8 +241,9 @@ class FcdReader:
             self._warn_lane_jumps(ids, lat_moved, dt, time)
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
-        if lat_speed is None:
-            lat_speed = lat_moved / dt if dt else np.zeros(len(ids))
+        if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
+            lat_speed = np.where(np.abs(lat_moved) > JUMP_SPEED * dt, 0.0, lat_moved / dt) if dt else \
+                np.zeros(len(ids))
         self._prev = {v: (s, int(e), lt) for v, s, e, lt in zip(ids, speed, edge, edge_lat)}
         self._prev_time = time
         is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)
