@@ -10,7 +10,7 @@ import pytest
 from conftest import NETWORKS
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.road.routes import RouteTable
-from sumo_rss.rss.auditor import ParamResolver
+from sumo_rss.rss.auditor import Auditor, ParamResolver
 from sumo_rss.rss.situations import evaluate, vehicle_frame
 from sumo_rss.sim.snapshot import WorldSnapshot
 
@@ -35,9 +35,12 @@ def _queue(net: RoadNetwork, rear_speed: float) -> WorldSnapshot:
 
 
 def _pairs(net: RoadNetwork, hold: bool, rear_speed: float):
+    """The pairs as the auditor evaluates them: candidates found as if no car stood."""
     snapshot = _queue(net, rear_speed)
-    params = ParamResolver("ad_rss", hold_standing=hold).arrays(snapshot)
-    return evaluate(snapshot, vehicle_frame(snapshot, net, params, RouteTable(net).remaining(snapshot)), net)
+    resolver = ParamResolver("ad_rss", hold_standing=hold)
+    frame = vehicle_frame(snapshot, net, resolver.arrays(snapshot), RouteTable(net).remaining(snapshot),
+                          resolver.arrays(snapshot, held=False))
+    return evaluate(snapshot, frame, net)
 
 
 @pytest.mark.parametrize("hold, rear_speed, d_min", [
@@ -52,7 +55,37 @@ def test_a_queue_is_dangerous_where_the_rear_car_may_accelerate(hold, rear_speed
 
 
 def test_a_standing_queue_is_safe_when_standing_cars_are_held():
-    """Both reaches are 0: the cars are too far apart to be a candidate pair at all (safe whatever the
-    situation)."""
+    """Held, the rear car's d_min is 0 (λ = 0): the queue is safe. It is still a candidate pair (candidates are
+    found as if no car stood), so what held at the step before one of the cars moves off is known."""
     pairs = _pairs(RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml"), True, 0.0)
-    assert pairs.a.size == 0
+    assert pairs.a.size == 1 and pairs.lon_d_min[0] == 0.0 and pairs.lon_safe[0]
+
+
+def test_a_standing_pair_that_becomes_dangerous_owes_what_was_safe_before():
+    """x stands in lane 1 (front bumper at 500 m), y in lane 0 (492 m), 5 m cars 1.8 m wide: 3 m apart along the
+    road (held d_min 0) and 1.7 m across (d_min 2·(0.2²/1.6 + 0.1) + 0.1 = 0.35 m): both safe. y moves off at
+    0.35 m/s with 1.2 m/s sideways towards x: along, d_min = 0.35 + 1.75 + 3.85²/8 = 3.95 m > 3.90 m; across,
+    2.75 m > −0.17 m: dangerous. Both were safe before t_b, so both cars owe both responses (rss.md §5). With
+    the candidates found at reach 0 the pair was not evaluated the step before (centres 8.7 m apart) and was taken
+    as having been laterally unsafe: the longitudinal response alone."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    lane_y = {0: -8.75, 1: -5.25}
+
+    def snapshot(t: float, y_front: float, y_lat: float, v: float, v_lat: float, accel: float) -> WorldSnapshot:
+        s, lane = np.array([500.0, y_front]), np.array([1, 0])
+        lat = np.array([0.0, y_lat])
+        return WorldSnapshot(
+            time=t, ids=np.array(["x", "y"]), x=s, y=np.array([lane_y[1], lane_y[0]]) + lat, heading=np.zeros(2),
+            speed=np.array([0.0, v]), accel=np.array([0.0, accel]), lat_speed=np.array([0.0, v_lat]),
+            length=np.full(2, 5.0), width=np.full(2, 1.8), lane_id=np.array(["hw0_1", "hw0_0"]),
+            edge_id=np.array(["hw0"] * 2), lane_index=lane, lane_pos=s, lat_pos=lat,
+            vclass=np.array(["background"] * 2), vtype=np.array(["car"] * 2), signals=np.zeros(2, int),
+            route_index=np.zeros(2, int), route_edges=(("hw0", "hw1", "hw2"),) * 2)
+
+    auditor = Auditor(net, ParamResolver("ad_rss", hold_standing=True), signal_rule=False)
+    for step in (snapshot(0.0, 492.0, 0.0, 0.0, 0.0, 0.0), snapshot(0.1, 492.035, 0.12, 0.35, 1.2, 3.5),
+                 snapshot(0.2, 492.07, 0.24, 0.35, 1.2, 0.0)):
+        auditor.observe(step)
+    (episode,) = auditor.finish().episodes.itertuples()
+    assert (episode.t_b_s, episode.trigger, episode.owed_a, episode.owed_b) == \
+        (0.1, "both", "lon:brake-at-most-max+lat:brake", "lon:brake-min+lat:brake")

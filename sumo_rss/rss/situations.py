@@ -153,8 +153,9 @@ def _half_extents(length: np.ndarray, width: np.ndarray, theta: np.ndarray) -> t
 
 
 def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssParamArrays,
-                  route_edges: np.ndarray) -> VehicleFrame:
-    """Per-vehicle geometry in the network and the per-car terms of the safe distances."""
+                  route_edges: np.ndarray, candidate_params: RssParamArrays | None = None) -> VehicleFrame:
+    """Per-vehicle geometry in the network and the per-car terms of the safe distances; the candidate bound
+    ``reach`` with ``candidate_params`` where given (the parameters without ``hold_standing``)."""
     lane = network.lane_indices(snapshot.lane_id)
     cx, cy = snapshot.centres()
     # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
@@ -171,7 +172,7 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         lane=lane, edge=network.lane_edge[lane], cx=cx, cy=cy, s=s, d=d, lane_heading=lane_heading,
         rel_heading=theta, speed=speed,
         v_lon=v_lon, v_lat=v_lat, half_lon=half_lon, half_lat=half_lat,
-        reach=lon_reach(speed, params, params.lon_brake_min_correct),
+        reach=lon_reach(speed, params if candidate_params is None else candidate_params, params.lon_brake_min_correct),
         reach_min=lon_reach(forward, params, params.lon_brake_min),
         stop_max=stopping_distance(forward, params.lon_brake_max),
         lat_reach_as_left=lateral_reach(-v_lat, params), lat_reach_as_right=lateral_reach(v_lat, params),
