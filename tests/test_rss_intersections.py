@@ -201,6 +201,69 @@ def test_signal_rule_red_light_and_avoidable_yellow_light_entries(tmp_path, rout
     assert (signal.episode_key == "").all()
 
 
+@pytest.mark.parametrize("case, expected", [
+    ("green onset", []),
+    ("red onset", [("signal-red-light", 33.0)]),
+    ("red onset, too fast to stop at yellow", [("signal-red-light", 33.0)]),
+    ("could stop when it turned yellow", [("signal-yellow-light", pytest.approx(31.2))]),
+    ("could not stop when it turned yellow", []),
+    ("red-yellow", [("signal-red-light", pytest.approx(3.2))]),
+])
+def test_a_crossing_is_judged_by_the_signal_state_it_was_made_under(tmp_path, case, expected):
+    """A snapshot's signal states are those SUMO moved its cars under to get there (stamped, as SUMO's outputs are,
+    with the step's start time): the light W-E turns G at 46.0 and N-S y at 30.0, r at 33.0 (intersection_tls).
+    A car at a constant speed that is 0.5 m before its line at 45.9 crosses under G: no violation (it was judged
+    by the state before, red). One 0.5 m before its line at 32.9 crosses under r: red light (it was yellow). At
+    26 m/s it needs 84.5 m to stop at b_min and was 78.5 m away when the light turned yellow: red light all the
+    same. At 10 m/s (12.5 m to stop) a car 12.9 m before its line when the light turned yellow (snapshot 29.9)
+    could stop: yellow light (the decision was taken at 30.0, 11.9 m before: none); 11.9 m before: none. A car
+    crossing under 'u' (red-yellow, closed in SUMO): red light."""
+    net = RoadNetwork.from_file(NETWORKS / "intersection_tls" / "intersection_tls.net.xml")
+    to_n, to_w = (float(net.lane_length[net.lane_indices([lane])[0]]) for lane in ("N_in_0", "W_in_0"))
+    # A car added at control time t0 (before the step from t0) at constant speed v is at pos + v·(t − t0 − 0.1)
+    # in the snapshot stamped t.
+    cars = {"green onset": (40.0, ["W_in", "E_out"], to_w - 0.5 - 10.0 * 5.8, 10.0),
+            "red onset": (25.0, ["N_in", "S_out"], to_n - 0.5 - 10.0 * 7.8, 10.0),
+            "red onset, too fast to stop at yellow": (25.0, ["N_in", "S_out"], to_n - 0.5 - 26.0 * 7.8, 26.0),
+            "could stop when it turned yellow": (20.0, ["N_in", "S_out"], to_n - 12.9 - 10.0 * 9.8, 10.0),
+            "could not stop when it turned yellow": (20.0, ["N_in", "S_out"], to_n - 11.9 - 10.0 * 9.8, 10.0),
+            "red-yellow": (0.0, ["W_in", "E_out"], to_w - 30.0, 10.0)}
+    t0, route, pos, speed = cars[case]
+    spec = _spec(tmp_path, "intersection_tls", 47.0 if case == "green onset" else 35.0)
+
+    def control(t):
+        if abs(t - t0) < 1e-6:
+            _add("car", route, 0, pos, speed)
+        _drive("car", 0.0)
+        if case == "red-yellow":
+            state = list(libsumo.trafficlight.getRedYellowGreenState("C"))
+            state[10] = "u"  # W_in straight
+            libsumo.trafficlight.setRedYellowGreenState("C", "".join(state))
+
+    result = audit_commanded(spec, lambda: None, control, spec.duration_s, "signal")
+    signal = result.violations[result.violations.role == "signal"]
+    assert list(zip(signal.constraint, signal.t_start_s)) == expected
+
+
+def test_a_crossing_within_one_step_past_the_junction_lane_is_judged(tmp_path):
+    """With 1 s steps a car turning right on red (W_in -> S_out, a 9 m junction lane) at 12 m/s goes from its
+    approach lane (0.5 m before the line at 5 s) to the exit edge in one step: a red light (it was never seen
+    on the junction lane, and went unjudged)."""
+    net = RoadNetwork.from_file(NETWORKS / "intersection_tls" / "intersection_tls.net.xml")
+    to_w = float(net.lane_length[net.lane_indices(["W_in_0"])[0]])
+    spec = load_scenario(write_scenario(tmp_path, {"network": "intersection_tls", "duration_s": 8.0, "step_s": 1.0,
+                                                   "demand": {"vtypes": {"car": {"length": 4.5, "width": 1.8}}}}))
+
+    def control(t):
+        if "turner" in libsumo.vehicle.getIDList():
+            libsumo.vehicle.setSpeed("turner", 12.0)
+
+    result = audit_commanded(spec, lambda: _add("turner", ["W_in", "S_out"], 0, to_w - 60.5, 12.0), control,
+                             spec.duration_s, "skip")
+    signal = result.violations[result.violations.role == "signal"]
+    assert list(zip(signal.vehicle_id, signal.constraint, signal.t_start_s)) == [("turner", "signal-red-light", 6.0)]
+
+
 def test_the_area_a_pair_becomes_dangerous_in_decides_who_yields(tmp_path):
     """An offline audit without routes: every link of a car's lane is a possible path, and e (E_in, westbound,
     13.89 m/s) and w (W_in, standing before its line) meet in five conflict areas. At 0 s every area is safe by

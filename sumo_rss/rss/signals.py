@@ -25,7 +25,7 @@ from ..sumo_xml import MALFORMED, output_elements
 from .intersection import next_route_edge
 from .situations import VehicleFrame
 
-RED, YELLOW = "rR", "yY"
+RED, YELLOW = "rRu", "yY"  # u: red-yellow, SUMO lets no car pass yet
 
 
 class SignalConstraint(str, Enum):
@@ -43,41 +43,63 @@ class SignalRule:
         self.junctions = junctions
         self.run_id = run_id
         self.records: list[dict] = []
-        # id → {link: (its state, could stop at yellow)} for the links it may take from its approach lane
-        self._approach: dict[str, dict[int, tuple[str, bool]]] = {}
+        # id → {link: (its state, could have stopped when it turned yellow, could stop from here)} for the links
+        # it may take from its approach lane
+        self._approach: dict[str, dict[int, tuple[str, bool, bool]]] = {}
 
     def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
+        """SUMO's signal states at a step are those its cars moved under to get there: a car that crossed a stop
+        line since the step before is judged by the state now, and a light that shows yellow first now turned
+        yellow where the cars were at the step before (whether they could have stopped is taken from there)."""
         j = self.junctions
         if not snapshot.tls_states:
             return
         lane = frame.lane
         inside = j.lane_link[lane]
         links = self._approach_links(frame)
-        # Whether each car could stop at its stop line now at b_min (judged when its light turns yellow).
+        # Whether each car could stop at its stop line from here at b_min.
         can_stop = snapshot.speed ** 2 / (2.0 * frame.params.lon_brake_min) <= \
             self.network.lane_length[lane] - snapshot.lane_pos
+        # Cars that approached a signalised link at the step before and left the approach lane (onto the link's
+        # internal lane, or past it within one step).
+        was_approaching = np.isin(snapshot.ids, list(self._approach)) if self._approach else \
+            np.zeros(len(snapshot.ids), dtype=bool)
         approach = {}
-        for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0)):
+        for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0) | was_approaching):
             vid = str(snapshot.ids[k])
             before = self._approach.get(vid, {})
-            if inside[k] >= 0:
-                if int(inside[k]) in before:  # crossed the stop line of this link during this step
-                    self._judge(vid, str(snapshot.vclass[k]), before[int(inside[k])], float(snapshot.speed[k]),
-                                snapshot.time)
+            if not (links[k] >= 0).any():
+                crossed = int(inside[k]) if inside[k] >= 0 else \
+                    next((lk for lk in before if j.link_to_edge[lk] == frame.edge[k]), -1)
+                if crossed in before:  # crossed the stop line of this link since the step before
+                    char = self._state(snapshot, crossed)
+                    self._judge(vid, str(snapshot.vclass[k]), char, self._could_stop(char, before[crossed], None),
+                                float(snapshot.speed[k]), snapshot.time)
                 continue
             states = {}
             for lk in (int(x) for x in links[k] if x >= 0):
-                state = snapshot.tls_states.get(j.link_tls[lk], "")
-                char = state[j.link_tls_index[lk]] if 0 <= j.link_tls_index[lk] < len(state) else ""
-                could_stop = False
-                if char and char in YELLOW:
-                    if lk in before and before[lk][0] in YELLOW:
-                        could_stop = before[lk][1]  # decided when it turned yellow
-                    else:
-                        could_stop = bool(can_stop[k])
-                states[lk] = (char, could_stop)
+                char = self._state(snapshot, lk)
+                states[lk] = (char, self._could_stop(char, before.get(lk), bool(can_stop[k])), bool(can_stop[k]))
             approach[vid] = states
         self._approach = approach
+
+    def _state(self, snapshot: WorldSnapshot, link: int) -> str:
+        """The signal state character of ``link`` in ``snapshot`` ('' if unknown)."""
+        j = self.junctions
+        state = snapshot.tls_states.get(j.link_tls[link], "")
+        return state[j.link_tls_index[link]] if 0 <= j.link_tls_index[link] < len(state) else ""
+
+    @staticmethod
+    def _could_stop(char: str, before: tuple[str, bool, bool] | None, can_stop_now: bool | None) -> bool:
+        """Whether the car could have stopped at b_min when its light turned yellow (False unless ``char`` is
+        yellow): decided at the step the light first showed yellow, from where the car was at the step before
+        (``before``: that step's (state, decision, could stop from there)); a car first seen under yellow, from
+        where it is now."""
+        if not (char and char in YELLOW):
+            return False
+        if before is None:
+            return bool(can_stop_now)
+        return before[1] if before[0] and before[0] in YELLOW else before[2]
 
     def _approach_links(self, frame: VehicleFrame) -> np.ndarray:
         """[n, links of a lane] the signalised links (-1: none) each car on an approach lane may take: the one of
@@ -91,8 +113,7 @@ class SignalRule:
         on_route = j.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]
         return np.where(signalised & (on_route | unknown[:, None]), cand, -1)
 
-    def _judge(self, vid: str, vclass: str, before: tuple[str, bool], speed: float, time: float) -> None:
-        char, could_stop = before
+    def _judge(self, vid: str, vclass: str, char: str, could_stop: bool, speed: float, time: float) -> None:
         if char and char in RED:
             constraint = SignalConstraint.RED_LIGHT
         elif char and char in YELLOW and could_stop:
