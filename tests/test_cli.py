@@ -7,10 +7,12 @@ import sys
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 
+import pandas as pd
 import pytest
 
 from conftest import REPO, SCENARIOS, SHIPPED_SCENARIOS, write_scenario
 from sumo_rss import load_scenario
+from sumo_rss.batch.runner import responsible_counts
 from sumo_rss.cli import main
 
 
@@ -30,6 +32,11 @@ def test_run_writes_the_run_directory_with_fcd(tmp_path):
     assert summary["vehicles_inserted"] >= 30 and summary["peak_vehicles"] >= 20
     assert summary["collisions"] == 0 and summary["teleports"] == 0 and summary["real_time_factor"] > 1
     assert summary["versions"]["sumo"] == "SUMO 1.28.0" and summary["versions"]["rss_model"]
+    episodes = pd.read_csv(run_dir / "episodes.csv")
+    assert summary["responsible_episodes"] == {k: int((episodes.responsible == k).sum())
+                                               for k in ("a", "b", "both", "none")}
+    # A value no episode has counts 0 (it was left out: a reader of summary["both"] failed).
+    assert responsible_counts(episodes[episodes.responsible != "both"])["both"] == 0
     # FCD: every step, with accelerations and lateral position/speed of every vehicle.
     root = ET.parse(run_dir / "fcd.xml").getroot()
     steps = root.findall("timestep")

@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Protocol
 
+import pandas as pd
 import tomli_w
 
 from .. import __version__
@@ -25,6 +26,7 @@ from ..files import write_json
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, CollisionInput, ParamResolver
 from ..rss.params import MODEL_VERSION
+from ..rss.responsibility import RESPONSIBLE_VALUES
 from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
@@ -97,6 +99,11 @@ class EgoController(Protocol):
         ...  # pragma: no cover
 
 
+def responsible_counts(episodes: pd.DataFrame) -> dict[str, int]:
+    """Episodes per value of ``responsible`` (a, b, both, none), every value present (0 where none)."""
+    return {k: int((episodes["responsible"] == k).sum()) for k in RESPONSIBLE_VALUES}
+
+
 def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool | None = None,
             on_step: Callable[[float], None] | None = None, controller: EgoController | None = None) -> RunSummary:
     """Co-simulate ``spec`` (its own seed), audit every step and write its run directory.
@@ -165,7 +172,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             vehicles_inserted=session.vehicles_inserted, peak_vehicles=session.peak_vehicles,
             collisions=len(session.collisions), teleports=session.teleports, episodes=len(episodes),
             violations=len(audit.violations),
-            responsible_episodes={k: int(v) for k, v in episodes["responsible"].value_counts().sort_index().items()},
+            responsible_episodes=responsible_counts(episodes),
             ego_responsible_episodes=int(ego_blamed.sum()),
             ego_mean_speed_ms=float(sum(r[3] for r in ego_rows) / len(ego_rows)) if ego_rows else None,
             ego_id=session.ego_id,

@@ -54,6 +54,8 @@ class StepInput:
     area_number: np.ndarray | None = None
 
 
+RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
+
 AREA_KEY = np.dtype([("pair", np.int64), ("area", np.int64)])
 
 
