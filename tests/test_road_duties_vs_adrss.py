@@ -75,29 +75,24 @@ class Car:
 
 
 # ------------------------------------------------------------------------------------------------ ad_rss side
-def _lon_position(ego: tuple[float, float], other: tuple[float, float]) -> tuple[str, float]:
+def _relative_position(ego: tuple[float, float], other: tuple[float, float], names: tuple[str, str, str, str]
+                       ) -> tuple[str, float]:
+    """ad_rss's relative position of two metric ranges on one axis, ``names`` = (ego beyond the other, ego short of
+    it, overlapping with the ego further on, overlapping with the ego further back), and the distance between
+    them (0 when they overlap; 'Overlap' when one range holds the other)."""
     if ego[0] > other[1]:
-        return "InFront", ego[0] - other[1]
+        return names[0], ego[0] - other[1]
     if other[0] > ego[1]:
-        return "AtBack", other[0] - ego[1]
+        return names[1], other[0] - ego[1]
     if ego[0] > other[0] and ego[1] > other[1]:
-        return "OverlapFront", 0.0
+        return names[2], 0.0
     if ego[0] < other[0] and ego[1] < other[1]:
-        return "OverlapBack", 0.0
+        return names[3], 0.0
     return "Overlap", 0.0
 
 
-def _lat_position(ego: tuple[float, float], other: tuple[float, float]) -> tuple[str, float]:
-    """ad_rss lateral metric ranges (+ = right)."""
-    if ego[0] > other[1]:
-        return "AtRight", ego[0] - other[1]
-    if other[0] > ego[1]:
-        return "AtLeft", other[0] - ego[1]
-    if ego[0] > other[0] and ego[1] > other[1]:
-        return "OverlapRight", 0.0
-    if ego[0] < other[0] and ego[1] < other[1]:
-        return "OverlapLeft", 0.0
-    return "Overlap", 0.0
+_LON_NAMES = ("InFront", "AtBack", "OverlapFront", "OverlapBack")
+_LAT_NAMES = ("AtRight", "AtLeft", "OverlapRight", "OverlapLeft")  # ad_rss's lateral axis: + = right
 
 
 def _frame(car: Car, mirrored: bool) -> tuple[tuple[float, float], tuple[float, float], float]:
@@ -134,8 +129,8 @@ def _constellation(ego: Car, other: Car, ids: tuple[int, int], opposite: bool, m
     rc.constellation_type = _W.ConstellationType.OppositeDirection if opposite else _W.ConstellationType.SameDirection
     rc.ego_state = _object_state(ego, u_e, True)
     rc.other_state = _object_state(other, u_o, False)
-    lon_pos, lon_dist = _lon_position(lon_e, lon_o)
-    lat_pos, lat_dist = _lat_position(lat_e, lat_o)
+    lon_pos, lon_dist = _relative_position(lon_e, lon_o, _LON_NAMES)
+    lat_pos, lat_dist = _relative_position(lat_e, lat_o, _LAT_NAMES)
     rp = rc.relative_position
     rp.longitudinal_position, rp.longitudinal_distance = _LON[lon_pos], _P.Distance(lon_dist)
     rp.lateral_position, rp.lateral_distance = _LAT[lat_pos], _P.Distance(lat_dist)
