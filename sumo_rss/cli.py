@@ -13,7 +13,7 @@ import warnings
 from pathlib import Path
 
 from . import __version__
-from .errors import SumoRssError
+from .errors import ScenarioError, SumoRssError
 from .rss.params import PRESETS
 from .scenario import CONTROLLERS, MAX_SEED
 
@@ -259,13 +259,13 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from .batch.orchestrator import run_batch
     from .batch.spec import BatchSpec, load_batch
     from .scenario import load_scenario
-    from .validation import tomllib
+    from .validation import read_toml
 
     tasks = []
     for path in args.specs:
         try:
-            is_batch = "batch" in tomllib.loads(path.read_text(encoding="utf-8-sig"))
-        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+            is_batch = "batch" in read_toml(path, "batch")
+        except (OSError, ScenarioError):
             is_batch = False  # load_scenario reports what is wrong with it
         if is_batch:
             spec = load_batch(path)
