@@ -79,13 +79,18 @@ class ParamResolver:
         return {f"{c}/{t}": {**p.to_dict(), **held} for (c, t), p in sorted(self._cache.items())}
 
     def arrays(self, snapshot: WorldSnapshot, held: bool = True) -> RssParamArrays:
-        """Every vehicle's parameters; ``held=False``: without ``hold_standing``'s a_acc = 0 for standing cars."""
+        """Every vehicle's parameters; ``held=False``: without ``hold_standing``'s a_acc = 0 for standing cars
+        (:meth:`hold` gives them)."""
         keys = np.char.add(np.char.add(snapshot.vclass.astype(str), "\x1f"), snapshot.vtype.astype(str))
         unique, inverse = np.unique(keys, return_inverse=True)
         table = RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique]).take(inverse)
-        if self.hold_standing and held:
-            table = replace(table, lon_accel_max=np.where(snapshot.speed == 0.0, 0.0, table.lon_accel_max))
-        return table
+        return self.hold(table, snapshot) if held else table
+
+    def hold(self, table: RssParamArrays, snapshot: WorldSnapshot) -> RssParamArrays:
+        """``table`` (:meth:`arrays` of ``snapshot``, not held) with ``hold_standing`` applied."""
+        if not self.hold_standing:
+            return table
+        return replace(table, lon_accel_max=np.where(snapshot.speed == 0.0, 0.0, table.lon_accel_max))
 
 
 PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
@@ -148,10 +153,10 @@ class Auditor:
 
     def observe(self, snapshot: WorldSnapshot, collisions: Iterable[CollisionInput] = ()) -> PairSituations:
         """Audit one step; returns the evaluated pairs (for inspection)."""
-        params = self.params.arrays(snapshot)
         # Candidates as if no car stood (hold_standing): standing neighbours stay evaluated, so what was safe the step
         # before one moves off is known.
-        moving = self.params.arrays(snapshot, held=False) if self.params.hold_standing else params
+        moving = self.params.arrays(snapshot, held=False)
+        params = self.params.hold(moving, snapshot)
         frame = vehicle_frame(snapshot, self.network, params, self._routes.remaining(snapshot), moving)
         road = evaluate(snapshot, frame, self.network)
         uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
