@@ -161,13 +161,13 @@ class FcdReader:
                           f"steps were {self._step:g} s apart (steps missing, or another output period): RSS is "
                           "judged at the steps written only", stacklevel=3)
 
-    def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, dt: float, time: float) -> None:
-        """Warn once per file when a car moves sideways faster than any car can (``JUMP_SPEED``): SUMO changed its
-        lane in one step (its lateral speed there is taken as 0, as SUMO's own ``speedLat``)."""
-        jumps = np.flatnonzero(np.abs(lat_moved) > JUMP_SPEED * dt)
-        if jumps.size and not self._warned_jump:
+    def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, jumped: np.ndarray, dt: float,
+                         time: float) -> None:
+        """Warn once per file when cars (``jumped``) moved sideways faster than any car can (``JUMP_SPEED``): SUMO
+        changed their lanes in one step (their lateral speed there is taken as 0, as SUMO's own ``speedLat``)."""
+        if not self._warned_jump:
             self._warned_jump = True
-            k = int(jumps[0])
+            k = int(np.flatnonzero(jumped)[0])
             warnings.warn(f"{self.path}: {ids[k]} moves {abs(lat_moved[k]):.2f} m sideways in one {dt:g} s step at "
                           f"{time:g} s: its lane changes are instantaneous (SUMO without --lanechange.duration or "
                           "--lateral-resolution); at such steps the lateral speed is taken as 0, as SUMO reports it",
@@ -237,13 +237,14 @@ class FcdReader:
         prev_speed = np.array([p[0] if p else 0.0 for p in prev])
         same_edge = seen & (np.array([p[1] if p else -1 for p in prev]) == edge)
         lat_moved = np.where(same_edge, edge_lat - np.array([p[2] if p else 0.0 for p in prev]), 0.0)  # [m]
-        if dt:
-            self._warn_lane_jumps(ids, lat_moved, dt, time)
+        # A car that moves sideways faster than any car can changed its lane in one step (SUMO's default).
+        jumped = np.abs(lat_moved) > JUMP_SPEED * dt if dt else np.zeros(len(ids), dtype=bool)
+        if jumped.any():
+            self._warn_lane_jumps(ids, lat_moved, jumped, dt, time)
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
         if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
-            lat_speed = np.where(np.abs(lat_moved) > JUMP_SPEED * dt, 0.0, lat_moved / dt) if dt else \
-                np.zeros(len(ids))
+            lat_speed = np.where(jumped, 0.0, lat_moved / dt) if dt else np.zeros(len(ids))
         self._prev = {v: (s, int(e), lt) for v, s, e, lt in zip(ids, speed, edge, edge_lat)}
         self._prev_time = time
         is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)
