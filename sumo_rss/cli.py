@@ -431,3 +431,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("sumo-rss: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":  # ``python -m sumo_rss.cli``, as ``python -m sumo_rss``
+    raise SystemExit(main())

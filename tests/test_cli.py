@@ -71,6 +71,10 @@ def test_every_command_has_help_with_examples(command):
 def test_version():
     proc = _cli("--version")
     assert proc.returncode == 0 and proc.stdout.strip().startswith("sumo-rss 0.")
+    # ``python -m sumo_rss.cli`` is the same command line (it ran nothing and exited 0).
+    module = subprocess.run([sys.executable, "-m", "sumo_rss.cli", "--version"], capture_output=True, text=True,
+                            cwd=REPO, check=False)
+    assert module.returncode == 0 and module.stdout == proc.stdout
 
 
 def test_same_scenario_and_seed_give_byte_identical_audit_csvs(tmp_path):
