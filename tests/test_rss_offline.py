@@ -546,7 +546,51 @@ def test_another_file_given_as_the_collision_output_is_refused(tmp_path):
         read_collisions(fcd)
     (tmp_path / "c.xml").write_text('<collisions><collision time="3.10" collider="a" victim="b" type="collision"/>'
                                     "</collisions>")
-    assert [(c.time, c.collider, c.victim) for c in read_collisions(tmp_path / "c.xml")[3.1]] == [(3.1, "a", "b")]
+    assert [(c.time, c.collider, c.victim) for c in read_collisions(tmp_path / "c.xml")] == [(3.1, "a", "b")]
+
+
+@pytest.mark.parametrize("record, message", [
+    ('time="3.10" collider="a"', "<collision> 2: attribute 'victim' is missing or empty"),
+    ('collider="a" victim="b"', "<collision> 2: attribute 'time' is missing or empty"),
+    ('time="abc" collider="a" victim="b"', "<collision> 2: attribute time='abc' is not a finite number"),
+    ('time="3.10" collider="a" victim="b" colliderSpeed="nan"', "attribute colliderSpeed='nan' is not a finite"),
+])
+def test_a_collision_record_without_its_time_or_cars_is_named(tmp_path, record, message):
+    """A record without a victim was a collision with '', one without a time was never audited (a NaN step)."""
+    path = tmp_path / "c.xml"
+    path.write_text(f'<collisions><collision time="1.00" collider="x" victim="y"/><collision {record}/></collisions>')
+    with pytest.raises(FcdError, match=re.escape(f"{path}: {message}") if message.startswith("<") else message):
+        read_collisions(path)
+
+
+def test_collisions_between_the_steps_of_a_sparser_fcd_are_audited_at_the_step_after(tmp_path):
+    """The collision reports were looked up by the FCD step's exact time: an FCD written every second lost the
+    collision that SUMO (stepping 0.1 s) reported between two of its steps, without a word; reports outside the
+    FCD's time span (a cut file) are named."""
+    fcd, collisions, routes = _crash_with_sumo_defaults(tmp_path)
+    net, vehicles = RoadNetwork.from_file(HIGHWAY), read_vehicle_info(routes, HIGHWAY)
+    crash_time = float(ET.parse(collisions).getroot().find("collision").get("time"))
+    tree = ET.parse(fcd)
+    steps = tree.getroot().findall("timestep")
+    kept = [s for s in steps if round(float(s.get("time")) * 10) % 10 == 0]
+    assert all(abs(float(s.get("time")) - crash_time) > 0.05 for s in kept)  # no step at the collision
+    for step in steps:
+        if step not in kept:
+            tree.getroot().remove(step)
+    tree.write(tmp_path / "sparse.xml")
+    sparse = audit_fcd(tmp_path / "sparse.xml", net, ParamResolver(), vehicles=vehicles, collisions=collisions)
+    assert sparse.collisions[["time_s", "collider", "victim", "blamed"]].values.tolist() == \
+        [[crash_time, "follower", "leader", "follower"]]
+    for step in kept:
+        if float(step.get("time")) > crash_time:
+            tree.getroot().remove(step)
+    tree.write(tmp_path / "cut.xml")
+    last = max(float(s.get("time")) for s in kept if float(s.get("time")) < crash_time)
+    with pytest.warns(UserWarning, match=re.escape(f"{collisions}: 1 collision report(s) outside the time steps of "
+                                                   f"{tmp_path / 'cut.xml'} (0-{last:g} s) not audited: "
+                                                   f"follower/leader at {crash_time:g} s")):
+        cut = audit_fcd(tmp_path / "cut.xml", net, ParamResolver(), vehicles=vehicles, collisions=collisions)
+    assert cut.collisions.empty
 
 
 @pytest.mark.filterwarnings("ignore:.*vType car is not defined")

@@ -33,6 +33,9 @@ JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps 
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
 
 
+STEP_TIME_TOLERANCE = 1e-6  # [s] a report at a step's time (both written with SUMO's few decimals) belongs to it
+
+
 class FcdError(SumoRssError):
     """An FCD, vType or collision file cannot be audited."""
 
@@ -93,20 +96,74 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
     return info
 
 
-def read_collisions(path: Path) -> dict[float, list[CollisionEvent]]:
-    """SUMO's collision-output file, as the reports of each time step."""
-    reports: dict[float, list[CollisionEvent]] = {}
+def read_collisions(path: Path) -> list[CollisionEvent]:
+    """SUMO's collision-output file, its reports in time order. Every record needs a numeric ``time`` and a
+    ``collider`` and a ``victim``; FcdError names the record and attribute otherwise."""
+    reports: list[CollisionEvent] = []
     try:
-        for elem in output_elements(path, "collisions", "collision"):
-            t = float(elem.get("time", "nan"))
-            reports.setdefault(t, []).append(CollisionEvent(
-                t, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
-                elem.get("victimType", ""), float(elem.get("colliderSpeed", 0)),
-                float(elem.get("victimSpeed", 0)), elem.get("type", ""), elem.get("lane", ""),
-                float(elem.get("pos", 0))))
+        for number, elem in enumerate(output_elements(path, "collisions", "collision"), start=1):
+            record = f"{path}: <collision> {number}"
+            for name in ("time", "collider", "victim"):
+                if not elem.get(name):
+                    raise FcdError(f"{record}: attribute {name!r} is missing or empty")
+            time, collider_speed, victim_speed, pos = (_record_number(elem, name, record) for name in (
+                "time", "colliderSpeed", "victimSpeed", "pos"))
+            reports.append(CollisionEvent(
+                time, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
+                elem.get("victimType", ""), collider_speed, victim_speed, elem.get("type", ""), elem.get("lane", ""),
+                pos))
     except (*MALFORMED, ValueError) as exc:
         raise FcdError(f"{path}: not a readable SUMO collision-output file ({exc})") from exc
-    return reports
+    return sorted(reports, key=lambda c: c.time)
+
+
+def _record_number(elem: ET.Element, name: str, record: str) -> float:
+    """A collision record's attribute ``name`` as a finite number (0 where an optional one is absent)."""
+    text = elem.get(name, "0")
+    try:
+        value = float(text)
+    except ValueError:
+        value = np.nan
+    if not np.isfinite(value):
+        raise FcdError(f"{record}: attribute {name}={text!r} is not a finite number")
+    return value
+
+
+class _CollisionReports:
+    """SUMO's collision reports (in time order) handed out to the FCD's time steps: each step takes those since the
+    step before, so a collision between two steps of an FCD written less often than SUMO stepped is audited at the
+    step after it (SUMO reports a lasting contact every step; :class:`ContactTracker` makes it one event)."""
+
+    def __init__(self, reports: list[CollisionEvent]):
+        self._reports = reports
+        self._next = 0  # the first report not handed out
+        self._before = 0  # reports before the first step
+        self._steps: list[float] = []  # the first and the last step's time [s]
+
+    def take_until(self, time: float) -> list[CollisionEvent]:
+        """The reports after the step before and up to ``time`` [s] (the first step: at ``time`` only)."""
+        reports, start = self._reports, self._next
+        if self._steps:
+            self._steps[1] = time
+        else:
+            while start < len(reports) and reports[start].time < time - STEP_TIME_TOLERANCE:
+                start += 1
+            self._before = start
+            self._steps = [time, time]
+        end = start
+        while end < len(reports) and reports[end].time <= time + STEP_TIME_TOLERANCE:
+            end += 1
+        self._next = end
+        return reports[start:end]
+
+    def warn_unused(self, collisions: Path, fcd: Path) -> None:
+        """Warn about the reports outside the FCD's time span (a cut FCD, or files of different runs)."""
+        outside = self._reports[:self._before] + self._reports[self._next:]
+        if outside:
+            span = f"{self._steps[0]:g}-{self._steps[1]:g} s" if self._steps else "no time steps"
+            first = ", ".join(f"{c.collider}/{c.victim} at {c.time:g} s" for c in outside[:3])
+            warnings.warn(f"{collisions}: {len(outside)} collision report(s) outside the time steps of {fcd} ({span}) "
+                          f"not audited: {first}{', ...' if len(outside) > 3 else ''}", stacklevel=3)
 
 
 class FcdReader:
@@ -267,7 +324,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
     how much of the FCD file (its size on disk) has been read."""
-    reports = read_collisions(collisions) if collisions is not None else None
+    reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
     try:
@@ -285,11 +342,13 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         if absent:
             absent.difference_update(snapshot.ids.tolist())
         if reports is not None:
-            new = contacts.step(reports.get(snapshot.time, []))
+            new = contacts.step(reports.take_until(snapshot.time))
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind) for c in new])
             continue
         found = overlap_contacts(snapshot, auditor.observe(snapshot))
         auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
+    if reports is not None:
+        reports.warn_unused(collisions, fcd)
     if absent:
         warnings.warn(f"{fcd}: no vehicle {', '.join(sorted(absent))} (given as the ego): audited without it",
                       stacklevel=2)
