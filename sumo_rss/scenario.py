@@ -15,8 +15,9 @@ from typing import Any
 
 from .errors import ScenarioError
 from .planner.behavior.cost_weights import CostWeights
-from .road.topology import EdgeInfo, NetTopology, read_topology
+from .road.topology import NetTopology, read_topology
 from .rss.params import PRESETS
+from .scenario_routes import check_depart_speed, check_route_permits, read_depart_lane, read_route
 from .scenario_rss import RssSpec, read_rss
 from .sumo_home import vtype_attribute_names
 from .validation import TableReader, one_of, read_toml
@@ -25,7 +26,6 @@ CAR_FOLLOW_MODELS = ("Krauss", "KraussPS", "KraussOrig1", "IDM", "EIDM", "ACC", 
 # SL2015 needs SUMO's sublane model, which this project does not use (see docs/scenarios.md).
 LANE_CHANGE_MODELS = ("LC2013",)
 VEHICLE_CLASSES = ("passenger", "truck", "trailer", "bus", "coach", "delivery", "motorcycle", "emergency")
-DEPART_LANES = ("best", "random", "free", "allowed", "first")
 DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
 CONTROLLERS = ("sumo", "epsilon", "mpdm")
 BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
@@ -80,7 +80,7 @@ class FlowSpec:
     probability: float | None
     begin_s: float
     end_s: float | None  # [s] None: until the end of the run (duration_s, also when an override changes it)
-    depart_lane: str  # a lane index as a string, or one of DEPART_LANES
+    depart_lane: str  # a lane index as a string, or one of scenario_routes.DEPART_LANES
     depart_speed: str | float  # [m/s], or one of DEPART_SPEEDS
     vtype: str | None  # None: the background vType distribution
 
@@ -111,7 +111,7 @@ class EgoSpec:
     id: str
     route: tuple[str, ...]
     depart_s: float
-    depart_lane: str  # an index as a string, or one of DEPART_LANES
+    depart_lane: str  # an index as a string, or one of scenario_routes.DEPART_LANES
     depart_pos_m: float
     depart_speed: float
     desired_speed: float
@@ -369,27 +369,6 @@ def _model_params(t: TableReader, key: str, *, lane_change: bool) -> dict[str, f
     return params
 
 
-def _read_route(t: TableReader, topology: NetTopology) -> tuple[str, ...]:
-    route = t.string_list("route")
-    for i, edge in enumerate(route):
-        if edge not in topology.edges:
-            raise t.error(f"route[{i}]", "expected an edge of the network", edge)
-        if i and not topology.connected(route[i - 1], edge):
-            raise t.error(f"route[{i}]", f"expected an edge reachable from {route[i - 1]!r}", edge)
-    return route
-
-
-def _read_depart_lane(t: TableReader, first_edge: str, topology: NetTopology) -> str:
-    value = t.raw("depart_lane", "best")
-    lanes = topology.edges[first_edge].num_lanes
-    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < lanes:
-        return str(value)
-    if isinstance(value, str) and value in DEPART_LANES:
-        return value
-    raise t.error("depart_lane", f"expected a lane index 0..{lanes - 1} of {first_edge!r} or one of "
-                                 f"{', '.join(repr(v) for v in DEPART_LANES)}", value)
-
-
 def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> DemandSpec:
     vtypes = tuple(_read_vtype(r, _sumo_id(t, f"vtypes.{name}", name), with_probability=True)
                    for name, r in t.named_tables("vtypes").items())
@@ -398,7 +377,7 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
     names = {v.id for v in vtypes}
     flows = []
     for i, f in enumerate(t.table_list("flows")):
-        route = _read_route(f, topology)
+        route = read_route(f, topology)
         kind = one_of(f, ("veh_per_hour", "probability"))
         begin = f.number("begin_s", 0.0, min=0.0)
         end = f.number("end_s", min=0.0, optional=True)
@@ -414,15 +393,19 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
         if not isinstance(speed, str):
             slowest = min((v for v in vtypes if (v.id == vtype if vtype else v.probability > 0)),
                           key=lambda v: v.max_speed)
-            _check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
+            check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
                                 f"the max_speed of vType {slowest.id!r}")
+        depart_lane = read_depart_lane(f, route[0], topology)
+        for v in vtypes:
+            if (v.id == vtype) if vtype else v.probability > 0:
+                check_route_permits(f, route, v.vclass, f"vType {v.id!r}", topology, depart_lane)
         flows.append(FlowSpec(
             id=_sumo_id(f, "id", f.string("id", f"flow{i}")), route=route,
             veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
             if kind == "veh_per_hour" else None,
             probability=f.number("probability", min=0.0, max=1.0, min_exclusive=True)
             if kind == "probability" else None,
-            begin_s=begin, end_s=end, depart_lane=_read_depart_lane(f, route[0], topology),
+            begin_s=begin, end_s=end, depart_lane=depart_lane,
             depart_speed=speed if isinstance(speed, str) else float(speed), vtype=vtype))
         f.finish()
     ids = [fl.id for fl in flows]
@@ -471,7 +454,7 @@ def _read_cost_weights(t: TableReader) -> dict[str, float]:
 
 
 def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec:
-    route = _read_route(t, topology)
+    route = read_route(t, topology)
     first = topology.edges[route[0]]
     depart_s = t.number("depart_s", 0.0, min=0.0)
     if depart_s >= duration:
@@ -479,7 +462,7 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
                       depart_s)
     spec = EgoSpec(
         id=_sumo_id(t, "id", t.string("id", "ego")), route=route, depart_s=depart_s,
-        depart_lane=_read_depart_lane(t, route[0], topology),
+        depart_lane=read_depart_lane(t, route[0], topology),
         depart_pos_m=t.number("depart_pos_m", 0.0, min=0.0, max=first.length),
         depart_speed=t.number("depart_speed", 0.0, min=0.0, max=100.0),
         desired_speed=t.number("desired_speed", min=0.0, max=100.0, min_exclusive=True),
@@ -487,18 +470,8 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
         vehicle=_read_vtype(t.table("vehicle"), "ego", with_probability=False),
         planner=_read_planner(t.table("planner")),
     )
-    _check_depart_speed(t, spec.depart_speed, first, min(spec.vehicle.max_speed, spec.desired_speed),
+    check_depart_speed(t, spec.depart_speed, first, min(spec.vehicle.max_speed, spec.desired_speed),
                         "the ego's top speed under SUMO, min(vehicle.max_speed, desired_speed)")
+    check_route_permits(t, route, spec.vehicle.vclass, "the ego", topology, spec.depart_lane)
     t.finish()
     return spec
-
-
-def _check_depart_speed(t: TableReader, speed: float, edge: EdgeInfo, top_speed: float, what: str) -> None:
-    """SUMO stops the run when a car departs faster than its vType's maxSpeed (``top_speed``, described by
-    ``what``) or its lane's speed limit."""
-    if speed > top_speed:
-        raise t.error("depart_speed", f"expected at most {top_speed:g} m/s, {what} (SUMO refuses a faster "
-                                      "departure)", speed)
-    if speed > edge.speed:
-        raise t.error("depart_speed", f"expected at most {edge.speed:g} m/s, the speed limit of {edge.id!r} (SUMO "
-                                      "refuses a faster departure)", speed)

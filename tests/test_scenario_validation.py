@@ -1,6 +1,7 @@
 """Bad scenario input: one valid base, one field broken per case; each error names file, key and form."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -247,3 +248,40 @@ def test_a_batch_file_given_as_a_scenario_says_so():
     with pytest.raises(ScenarioError, match=r"default\.toml: batch: expected a scenario file, not a batch file "
                                             r"\(\[batch\] table\): run it with 'sumo-rss batch'"):
         load_scenario(REPO / "scenarios" / "default.toml")
+
+
+def _highway_without(tmp_path, vclass: str, edge: str = "hw1", lane: int | None = None):
+    """The highway net with ``vclass`` disallowed on ``edge`` (all lanes, or only lane ``lane``)."""
+    tree = ET.parse(REPO / "networks" / "highway" / "highway.net.xml")
+    for element in tree.getroot().iter("lane"):
+        if element.get("id").rsplit("_", 1)[0] == edge and lane in (None, int(element.get("index"))):
+            element.set("disallow", vclass)
+    path = tmp_path / f"no_{vclass}_{edge}_{lane}.net.xml"
+    tree.write(path)
+    return str(path)
+
+
+@pytest.mark.parametrize("table, key, who", [("ego", "ego.route[1]", "the ego"),
+                                             ("flow", "demand.flows[0].route[1]", "vType 'car'")])
+def test_a_route_that_the_vehicle_class_may_not_drive_is_refused(tmp_path, valid_scenario, table, key, who):
+    """SUMO stops a run (a traceback of libsumo's FatalTraCIError) at a vehicle whose vClass may not use a lane
+    of its route: trucks on a motorway closed to trucks."""
+    valid_scenario["network"] = _highway_without(tmp_path, "truck")
+    if table == "ego":
+        valid_scenario["ego"]["vehicle"] = {"vclass": "truck"}
+    else:
+        valid_scenario["demand"]["vtypes"]["car"]["vclass"] = "truck"
+    with pytest.raises(ScenarioError, match=re.escape(f"{key}: expected an edge that {who} (vClass 'truck') may "
+                                                      "reach from 'hw0' (no connection between lanes that permit "
+                                                      "it), got 'hw1'")):
+        load_scenario(write_scenario(tmp_path, valid_scenario))
+
+
+def test_the_ego_departs_only_on_a_lane_that_its_class_may_use(tmp_path, valid_scenario):
+    valid_scenario["ego"]["vehicle"] = {"vclass": "truck"}  # departs on lane 1 of hw0
+    valid_scenario["network"] = _highway_without(tmp_path, "passenger", "hw0", lane=1)  # the flows use 0 and 2
+    assert load_scenario(write_scenario(tmp_path, valid_scenario)).ego.vehicle.vclass == "truck"
+    valid_scenario["network"] = _highway_without(tmp_path, "truck", "hw0", lane=1)
+    with pytest.raises(ScenarioError, match=re.escape("ego.depart_lane: expected a lane of 'hw0' that the ego "
+                                                      "(vClass 'truck') may use: 0, 2, got 1")):
+        load_scenario(write_scenario(tmp_path, valid_scenario))

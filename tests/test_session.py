@@ -3,7 +3,7 @@ motion, collision bookkeeping and the session's lifecycle rules."""
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 import pytest
@@ -185,3 +185,20 @@ def test_the_route_file_and_command_line_keep_every_digit_of_a_time(tmp_path, va
     assert routes.find("flow").get("end") == "20000.25"
     args = sumo_arguments(spec, tmp_path / "routes.rou.xml")
     assert args[args.index("--end") + 1] == "20000.25" and args[args.index("--step-length") + 1] == "0.05"
+
+
+def test_sumo_ending_the_run_is_a_session_error_naming_the_scenario(tmp_path, valid_scenario):
+    """A vehicle SUMO cannot route ends the run with libsumo's FatalTraCIError, which reached the user as a
+    traceback. (Scenario files refuse such routes; a spec changed from Python is not checked again.)"""
+    tree = ET.parse(NETWORKS / "highway" / "highway.net.xml")
+    for lane in tree.getroot().iter("lane"):
+        if lane.get("id").startswith("hw1_"):
+            lane.set("disallow", "truck")
+    tree.write(tmp_path / "no_trucks.net.xml")
+    valid_scenario["network"] = str(tmp_path / "no_trucks.net.xml")
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    spec = replace(spec, ego=replace(spec.ego, vehicle=replace(spec.ego.vehicle, vclass="truck")))
+    with Session(spec) as session, pytest.raises(SessionError, match=r"SUMO stopped scenario .*scenario\.toml at "
+                                                                     r"t = 1\.\d0 s: .*ego.*no valid route"):
+        while not session.finished:
+            session.step()

@@ -194,7 +194,11 @@ class Session:
     def step(self) -> WorldSnapshot:
         if not self._open:
             raise SessionError("the session is not running; use it as 'with Session(spec) as s:'")
-        libsumo.simulationStep()
+        try:
+            libsumo.simulationStep()
+        except (libsumo.FatalTraCIError, libsumo.TraCIException) as exc:  # SUMO has ended the run
+            raise SessionError(f"SUMO stopped scenario {self.spec.source} at t = {self.time + self.spec.step_s:.2f} "
+                               f"s: {exc}") from exc
         self.steps += 1
         # SUMO stamps the state a step produced with the step's start time in all its output files (FCD,
         # collisions); snapshots use the same stamp, from SUMO's integer milliseconds (exact decimals).
