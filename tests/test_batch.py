@@ -434,3 +434,15 @@ def test_report_names_an_emptied_audit_csv_of_the_batch(tmp_path):
     (tmp_path / "episodes.csv").write_text("")
     with pytest.raises(SumoRssError, match=r"episodes\.csv: not a CSV file as 'sumo-rss batch' writes it"):
         write_report(tmp_path)
+
+
+def test_a_worker_whose_batch_died_while_it_started_exits_at_once():
+    """A worker process sets 'die with my parent' only once its Python code runs (~1 s after it is spawned); a
+    batch killed before that left it adopted by init, running its whole simulation beside the next batch. It now
+    checks that its parent is still the batch that started it."""
+    code = ("import sys; from sumo_rss.batch.executors import _die_with_parent; _die_with_parent(int(sys.argv[1])); "
+            "print('ran')")
+    for parent, expected in ((os.getpid(), (0, "ran\n")), (os.getpid() + 4_000_000, (1, ""))):
+        proc = subprocess.run([sys.executable, "-c", code, str(parent)], capture_output=True, text=True, cwd=REPO,
+                              check=False)
+        assert (proc.returncode, proc.stdout) == expected, proc.stderr

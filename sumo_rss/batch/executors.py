@@ -10,6 +10,7 @@ from __future__ import annotations
 import ctypes
 import json
 import multiprocessing as mp
+import os
 import shutil
 import signal
 import sys
@@ -60,15 +61,19 @@ def execute(task: Task, out_dir: str | Path) -> Outcome:
     return Outcome(task.run_id, "ok")
 
 
-def _die_with_parent() -> None:
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel kill this process when its parent (pid ``parent``) dies; exit now if it already has (the
+    batch was killed while this process started: it was adopted by init and ran its task alone)."""
     if sys.platform.startswith("linux"):
         pr_set_pdeathsig = 1
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent:
+        raise SystemExit(1)
 
 
-def _child(task: Task, out_dir: str, started: Any) -> None:
+def _child(task: Task, out_dir: str, started: Any, parent: int) -> None:
+    _die_with_parent(parent)
     started.set()
-    _die_with_parent()
     outcome = execute(task, out_dir)
     raise SystemExit(0 if outcome.status == "ok" else 1)
 
@@ -90,7 +95,8 @@ class LocalExecutor:
                 while pending and len(running) < self.workers:
                     task = pending.popleft()
                     started = ctx.Event()  # set once the worker runs our code (after importing __main__)
-                    proc = ctx.Process(target=_child, args=(task, str(out_dir), started), name=task.run_id)
+                    proc = ctx.Process(target=_child, args=(task, str(out_dir), started, os.getpid()),
+                                       name=task.run_id)
                     proc.start()
                     running[proc.sentinel] = (proc, task, started)
                 for sentinel in wait(list(running)):
