@@ -310,6 +310,10 @@ def _read_sumo(t: TableReader) -> SumoSpec:
         collision_mingap_factor=t.number("collision_mingap_factor", 0.0, min=0.0, max=1.0),
         extra_args=t.string_list("extra_args", [], min_len=0),
     )
+    for i, arg in enumerate(spec.extra_args):
+        if arg.split("=", 1)[0] == "--random":  # SUMO's own seed from the clock
+            raise t.error(f"extra_args[{i}]", "expected no --random: the scenario's seed makes a run repeatable "
+                                             "(the same scenario and seed give byte-identical outputs)", arg)
     t.finish()
     return spec
 

@@ -107,6 +107,11 @@ BROKEN = [
      "demand.vtypes.a,b", "expected an id SUMO accepts"),
     ("ego id of a flow", lambda d: _set(d, "demand.flows.0.id", "ego"), "ego.id",
      "expected an id other than the flows' (each names its route route_<id> in the route file)"),
+    # SUMO seeded from the clock: two runs of one scenario and seed differed.
+    ("sumo --random", lambda d: _set(d, "sumo", {"extra_args": ["--max-depart-delay", "5", "--random"]}),
+     "sumo.extra_args[2]", "expected no --random: the scenario's seed makes a run repeatable"),
+    ("sumo --random=true", lambda d: _set(d, "sumo", {"extra_args": ["--random=true"]}), "sumo.extra_args[0]",
+     "expected no --random"),
 ]
 
 
