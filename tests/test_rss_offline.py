@@ -641,3 +641,13 @@ def test_unevenly_spaced_time_steps_are_named_once(tmp_path):
                                          r"file's steps were 0\.1 s apart") as record:
         list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
     assert sum("comes" in str(w.message) for w in record) == 1
+
+
+def test_an_fcd_without_time_steps_is_named(tmp_path):
+    """An FCD with its root and no step (SUMO run with begin after end, a wrong filter) gave '0 episodes' without
+    a word."""
+    fcd = tmp_path / "empty.xml"
+    fcd.write_text("<fcd-export></fcd-export>")
+    with pytest.warns(UserWarning, match=r"empty\.xml: no <timestep> in the file: nothing to audit"):
+        result = audit_fcd(fcd, RoadNetwork.from_file(HIGHWAY), ParamResolver())
+    assert result.episodes.empty

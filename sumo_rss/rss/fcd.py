@@ -335,7 +335,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
-    for snapshot in reader:
+    steps = 0
+    for steps, snapshot in enumerate(reader, start=1):
         if on_progress is not None:
             on_progress(reader.bytes_read)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
@@ -347,6 +348,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
             continue
         found = overlap_contacts(snapshot, auditor.observe(snapshot))
         auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
+    if not steps:
+        warnings.warn(f"{fcd}: no <timestep> in the file: nothing to audit", stacklevel=2)
     if reports is not None:
         reports.warn_unused(collisions, fcd)
     if absent:
