@@ -91,6 +91,21 @@ def test_same_scenario_and_seed_give_byte_identical_audit_csvs(tmp_path):
     assert summaries[0] == summaries[1]
 
 
+def test_the_planners_own_rss_preset_is_written_beside_the_auditors_parameters(tmp_path, valid_scenario):
+    """With ``[ego.planner] rss_preset`` the parameters the planner judged RSS with were written nowhere."""
+    valid_scenario.update(duration_s=3.0)
+    valid_scenario["ego"].update(controller="epsilon", planner={"rss_preset": "epsilon"})
+    proc = _cli("run", str(write_scenario(tmp_path, valid_scenario)), "--out", str(tmp_path), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run_dir = tmp_path / "scenario" / "1"
+    planner = json.loads((run_dir / "planner.json").read_text())["rss_params"]
+    audited = json.loads((run_dir / "rss_params.json").read_text())
+    assert planner.keys() <= audited.keys() and "ego/ego_type" in planner
+    for key, own in planner.items():  # rss.md's presets: epsilon for the planner, the scenario's ad_rss audited
+        assert (own["response_time"], own["lon_brake_max"], own["lat_accel_max"]) == (0.2, 5.0, 1.0), key
+        assert (audited[key]["response_time"], audited[key]["lon_brake_max"]) == (1.0, 8.0), key
+
+
 def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, valid_scenario):
     """``run --controller`` replaces the scenario's controller (recorded in the resolved scenario) and writes the
     run where a batch's controller sweep would, beside the scenario's own run; ``batch --controller`` sweeps
@@ -105,6 +120,7 @@ def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, v
     assert load_scenario(run_dir / "scenario.toml").ego.controller == "epsilon"
     planner = json.loads((run_dir / "planner.json").read_text())
     assert planner["cycles"] >= 100  # the ego departs at 1 s and is planned for every step from then on
+    assert "rss_params" not in planner  # it used the auditor's, those of rss_params.json
     proc = _cli("batch", str(scenario), "--controller", "sumo", "mpdm", "--duration", "8", "--out",
                 str(tmp_path / "sweep"), "--quiet")
     assert proc.returncode == 0, proc.stderr

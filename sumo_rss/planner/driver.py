@@ -38,6 +38,7 @@ class EgoDriver:
         self.spec = spec
         self.ego_id = spec.ego.id
         self.planner = EpsilonPlanner(network, planner_params, planner_config(spec))
+        self._own_params = planner_params is not audit_params  # [ego.planner] rss_preset names another preset
         self.guard = ProperResponseGuard(audit_params, spec.step_s)
         self._trajectory: Trajectory | None = None
         self._frenet: FrenetPlan | None = None
@@ -65,7 +66,8 @@ class EgoDriver:
         """Cycle times [ms], backups, lane changes, guard interventions, chosen policies, how many agent
         beliefs came from the intention network (per cycle and agent), the motion layer's outcomes, and the RMS
         jerk [m/s³] of the executed motion: the second differences of the executed speed (longitudinal) and of
-        the planned lateral speed in the planning frame (lateral) over the steps."""
+        the planned lateral speed in the planning frame (lateral) over the steps. With a preset of its own, the
+        RSS parameters the planner used (as rss_params.json has the auditor's)."""
         times = np.array(self.planner.stats.cycle_times) * 1000.0
         stats = {"cycles": int(times.size), "backups": self.planner.stats.backups,
                  "lane_changes_started": self.planner.manager.lane_changes_started,
@@ -82,6 +84,8 @@ class EgoDriver:
                                "qp_refined": motion.solver.refinements,
                                "ms_median": float(np.median(ms)) if ms.size else None,
                                "ms_p99": float(np.percentile(ms, 99)) if ms.size else None}
+        if self._own_params:
+            stats["rss_params"] = self.planner.params.resolved()
         if times.size:
             stats |= {"cycle_ms_median": float(np.median(times)), "cycle_ms_p95": float(np.percentile(times, 95)),
                       "cycle_ms_p99": float(np.percentile(times, 99))}
