@@ -225,11 +225,12 @@ def _fcd_vehicle(vid: str, at: float, **changed: str) -> str:
 @pytest.mark.parametrize("changed, message", [
     ({"x": "nan"}, "vehicle 'a': x: expected a finite number, got 'nan'"),
     ({"speed": "inf"}, "vehicle 'a': speed: expected a finite number, got 'inf'"),
+    ({"speed": "-5"}, "vehicle 'a': speed: expected a number >= 0 (m/s), got '-5'"),
     ({"pos": "abc10"}, "vehicle 'a': pos: expected a finite number, got 'abc10'"),
     ({"acceleration": "x0"}, "vehicle 'a': acceleration: expected a finite number, got 'x0'"),
     ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer, got '0.0'"),
     ({"id": "b"}, "vehicle 'b' is listed more than once"),
-], ids=["nan", "inf", "optional", "acceleration", "signals", "twice"])
+], ids=["nan", "inf", "negative-speed", "optional", "acceleration", "signals", "twice"])
 @pytest.mark.filterwarnings("ignore:.*vType car is not defined")
 def test_bad_values_in_an_fcd_name_the_time_step_vehicle_and_attribute(tmp_path, changed, message):
     """Every attribute read is checked (finite numbers, integer signals, ids once per step): a bad value is an

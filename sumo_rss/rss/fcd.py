@@ -257,6 +257,10 @@ class FcdReader:
             twice = next(v for v, count in Counter(ids.tolist()).items() if count > 1)
             raise FcdError(f"{where}: vehicle {twice!r} is listed more than once")
         x, y, angle, speed = (_numbers(rows, name, where) for name in ("x", "y", "angle", "speed"))
+        if (speed < 0.0).any():  # the audit's speeds are along the road; SUMO writes none below 0
+            bad = int(np.argmax(speed < 0.0))
+            raise FcdError(f"{where}: vehicle {rows[bad].get('id')!r}: speed: expected a number >= 0 (m/s), got "
+                           f"{rows[bad]['speed']!r}")
         try:
             lane = self.network.lane_indices(lane_id)
         except UnknownLaneError as exc:
