@@ -5,6 +5,7 @@ W-E red. intersection_priority: W-E major road, S-N minor road with stop signs.
 """
 from __future__ import annotations
 
+import subprocess
 from collections.abc import Callable
 
 import libsumo
@@ -19,6 +20,7 @@ from sumo_rss.rss.auditor import AuditResult, Auditor, ParamResolver
 from sumo_rss.rss.formulas import lon_reach
 from sumo_rss.rss.params import RssParams
 from sumo_rss.sim.snapshot import WorldSnapshot
+from sumo_rss.sumo_home import sumo_tool
 
 DT = 0.1  # [s]
 
@@ -301,3 +303,46 @@ def test_the_area_a_pair_becomes_dangerous_in_decides_who_yields(tmp_path):
         (violation,) = result.violations.itertuples()
         assert (violation.vehicle_id, violation.constraint, violation.bound, violation.t_start_s) == \
             ("e", "lon-brake-after-response-time", -4.0, 1.2)
+
+
+ROUNDABOUT_NODES = """<nodes>
+ <node id="r0" x="20" y="0" type="priority"/><node id="r1" x="0" y="20" type="priority"/>
+ <node id="r2" x="-20" y="0" type="priority"/><node id="r3" x="0" y="-20" type="priority"/>
+ <node id="E" x="200" y="0"/><node id="N" x="0" y="200"/><node id="W" x="-200" y="0"/><node id="S" x="0" y="-200"/>
+</nodes>"""
+ROUNDABOUT_EDGES = "<edges>" + "".join(
+    f'<edge id="R{a}{b}" from="r{a}" to="r{b}" numLanes="1" speed="8" shape="{shape}"/>'
+    for a, b, shape in ((0, 1, "20,0 14.1,14.1 0,20"), (1, 2, "0,20 -14.1,14.1 -20,0"),
+                        (2, 3, "-20,0 -14.1,-14.1 0,-20"), (3, 0, "0,-20 14.1,-14.1 20,0"))) + "".join(
+    f'<edge id="{arm}in" from="{arm}" to="r{k}" numLanes="1"/><edge id="{arm}out" from="r{k}" to="{arm}" numLanes="1"/>'
+    for k, arm in enumerate("ENWS")) + "</edges>"
+
+
+def test_a_car_two_junctions_away_on_a_roundabout_is_in_its_conflict_before_the_edge_leading_there(tmp_path):
+    """A roundabout's edges are ~22 m: a circulating car took part in the conflict at the next junction only once
+    on the edge leading there. An entering car that had long been unable to stop was then first seen already in
+    danger, and the circulating car (which has priority) was made to brake and blamed. Its route now carries it
+    into the conflicts at the junctions after the next within the horizon: the entering car, which must yield,
+    owes the braking from when it could no longer stop."""
+    (tmp_path / "r.nod.xml").write_text(ROUNDABOUT_NODES)
+    (tmp_path / "r.edg.xml").write_text(ROUNDABOUT_EDGES)
+    subprocess.run([str(sumo_tool("netconvert")), "-n", str(tmp_path / "r.nod.xml"), "-e", str(tmp_path / "r.edg.xml"),
+                    "--roundabouts.guess", "--no-turnarounds", "-o", str(tmp_path / "rb.net.xml")],
+                   check=True, capture_output=True)
+    data = {"network": str(tmp_path / "rb.net.xml"), "duration_s": 16.0,
+            "demand": {"vtypes": {"car": {"length": 4.5, "width": 1.8}}}}
+    spec = load_scenario(write_scenario(tmp_path, data))
+    speeds = {"circ": 5.5, "ent": 16.5}  # the entering car does not slow down
+
+    def control(t):
+        if abs(t - 3.5) < 1e-6:
+            _add("ent", ["Ein", "R01", "Nout"], 0, 5.0, speeds["ent"])
+        for vid, speed in speeds.items():
+            if vid in libsumo.vehicle.getIDList():
+                libsumo.vehicle.setSpeed(vid, speed)
+
+    result = _audit(spec, lambda: _add("circ", ["R12", "R23", "R30", "R01", "Nout"], 0, 0.0, speeds["circ"]), control)
+    episodes = _junction_episodes(result, "circ", "ent")
+    assert episodes[["conflict_area", "trigger", "owed_a", "owed_b", "responsible"]].values.tolist() == \
+        [["r0:0x2", "able-to-stop", "", "int:brake-min", "b"]]
+    assert episodes.t_b_s.iloc[0] == pytest.approx(10.0)  # first seen (already dangerous) at 11.9 s before

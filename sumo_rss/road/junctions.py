@@ -68,6 +68,8 @@ class JunctionModel:
     area_start: np.ndarray  # [L, L] start of that area along the first link's path [m]
     area_end: np.ndarray  # [L, L] its end [m]
     static_priority: np.ndarray  # [L, L] +1: the first link has priority, -1: it yields, 0: same
+    link_to_lane: np.ndarray  # [L] lane the link leads into
+    link_length: np.ndarray  # [L] length of the link's internal path [m]
 
     @classmethod
     def from_file(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
@@ -128,7 +130,9 @@ class JunctionModel:
                    np.array([network.lane_edge[link.to_lane] for link in links], dtype=int),
                    np.array([link.tls for link in links], dtype=object),
                    np.array([link.tls_index for link in links], dtype=int),
-                   area_index, area_start, area_end, static_priority)
+                   area_index, area_start, area_end, static_priority,
+                   np.array([link.to_lane for link in links], dtype=int),
+                   np.array([link.length for link in links], dtype=float))
 
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""

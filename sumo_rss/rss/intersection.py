@@ -31,6 +31,7 @@ from .situations import (RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, SITU
                          SituationType, VehicleFrame)
 
 TIME_PRECISION = 1e-3  # [s] arrival must follow exit by more than this (ad_rss's Duration tolerance)
+JUNCTIONS_AHEAD = 3  # further junctions along a route (after the next) that a vehicle within the horizon takes part in
 KIND_SIGNAL = SITUATION_CODES.index(SituationType.INTERSECTION_PRIORITY)
 KIND_YIELD = SITUATION_CODES.index(SituationType.INTERSECTION_YIELD)
 KIND_SAME = SITUATION_CODES.index(SituationType.INTERSECTION_SAME_PRIORITY)
@@ -167,14 +168,40 @@ def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarr
     return rows, links, pos
 
 
+def entries_beyond(rows: np.ndarray, links: np.ndarray, pos: np.ndarray, route_edges: np.ndarray,
+                   network: RoadNetwork, junctions: JunctionModel, horizon: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The entries of :func:`junction_entries` (vehicle rows, links, positions [m]) and those at the next junctions
+    along each vehicle's route, as long as a link starts within ``horizon`` [m] of the front bumper (at most
+    JUNCTIONS_AHEAD more): where edges between junctions are short (a roundabout's 20 m) a car is in its conflicts
+    at the next junction before it reaches the edge leading there. Followed from the lane each link leads into;
+    not where the route is unknown."""
+    found = [(rows, links, pos)]
+    after = junctions.link_length[links] - pos  # [m] from the front bumper to the end of the link's path
+    for _ in range(JUNCTIONS_AHEAD):
+        lane = junctions.link_to_lane[links]
+        start = after + network.lane_length[lane]  # [m] to the start of the next link
+        next_edge = next_route_edge(route_edges[rows], network.lane_edge[lane])
+        cand = junctions.lane_links[lane]
+        ok = (cand >= 0) & (start[:, None] <= horizon) & (next_edge[:, None] >= 0) & \
+            (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None])
+        r, c = np.nonzero(ok)
+        if r.size == 0:
+            break
+        rows, links, start = rows[r], cand[r, c], start[r]
+        found.append((rows, links, -start))
+        after = start + junctions.link_length[links]
+    return tuple(np.concatenate(parts) for parts in zip(*found))  # type: ignore[return-value]
+
+
 def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
                             junctions: JunctionModel, horizon: float) -> PairSituations:
     """Every pair of vehicles whose links through a junction share a conflict area, one situation per pair and
     area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), or already on the link's internal lanes."""
-    rows, links, pos = junction_entries(frame.lane, snapshot.lane_pos, next_route_edge(frame.route_edges, frame.edge),
-                                        network, junctions, horizon)
+    rows, links, pos = entries_beyond(*junction_entries(frame.lane, snapshot.lane_pos, next_route_edge(
+        frame.route_edges, frame.edge), network, junctions, horizon), frame.route_edges, network, junctions, horizon)
     i, j = np.triu_indices(len(rows), 1)
     share = (junctions.area_index[links[i], links[j]] >= 0) & (rows[i] != rows[j])
     i, j = i[share], j[share]
