@@ -26,7 +26,7 @@ class Duties:
 
     must_brake: np.ndarray  # [n, 2] at most a_acc during ρ, then at least b_min (b_corr) until stopped
     front_limited: np.ndarray  # [n, 2] must not brake harder than b_max
-    brake_correct: np.ndarray  # [n] opposite directions: the braking owed is b_corr
+    brake_correct: np.ndarray  # [n, 2] opposite directions, in its correct lane: the braking owed is b_corr
     owed_lat: np.ndarray  # [n] the lateral response (both cars)
     trigger: np.ndarray  # [n] what was lost at t_b
     roles: np.ndarray  # [n, 2] e.g. 'rear', 'front+left', 'yielding'
@@ -74,13 +74,18 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
     must_brake = owed_lon[:, None] & np.where(same[:, None], rear, True)
     front_limited = owed_lon[:, None] & same[:, None] & ~rear
     lon_role = np.where(same[:, None], np.where(rear, "rear", "front"), "oncoming")
-    lon_owed = np.where(same[:, None], np.where(rear, "lon:brake-min", "lon:brake-at-most-max"), "lon:brake-correct")
+    # Opposite directions: b_corr for a car in its correct lane, b_min for one in the oncoming lane (rss.md §5).
+    wrong_way = np.column_stack([sit.wrong_way_a[rows], sit.wrong_way_b[rows]]) if sit.wrong_way_a is not None \
+        else np.zeros((len(rows), 2), dtype=bool)
+    brake_correct = (sit.kind[rows] == 1)[:, None] & ~wrong_way
+    lon_owed = np.where(same[:, None], np.where(rear, "lon:brake-min", "lon:brake-at-most-max"),
+                        np.where(brake_correct, "lon:brake-correct", "lon:brake-min"))
     a_left = sit.a_is_left[rows]
     lat_role = np.column_stack([np.where(a_left, "left", "right"), np.where(a_left, "right", "left")])
     roles = _join(np.where(owed_lon[:, None], lon_role, ""), np.where(owed_lat[:, None], lat_role, ""))
     owed = _join(np.where(owed_lon[:, None], lon_owed, ""), np.where(owed_lat[:, None], "lat:brake", ""))
     trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
-    return Duties(must_brake, front_limited, sit.kind[rows] == 1, owed_lat, trigger.astype(object), roles, owed)
+    return Duties(must_brake, front_limited, brake_correct, owed_lat, trigger.astype(object), roles, owed)
 
 
 def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, prev_priority: np.ndarray,
@@ -104,5 +109,5 @@ def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.n
     owed = np.where(must_brake, "int:brake-min", "").astype(object)
     trigger = np.where(able, "able-to-stop", np.where(in_front, "in-front", np.where(
         (rules > 0), "no-time-overlap", np.where(appeared, "appeared", "first-seen"))))
-    return Duties(must_brake, np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool),
+    return Duties(must_brake, np.zeros((n, 2), dtype=bool), np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool),
                   trigger.astype(object), roles, owed)

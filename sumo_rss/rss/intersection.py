@@ -200,7 +200,7 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), or already on the link's internal lanes."""
-    rows, links, pos = entries_beyond(*junction_entries(frame.lane, snapshot.lane_pos, next_route_edge(
+    rows, links, pos = entries_beyond(*junction_entries(frame.lane, frame.lane_pos, next_route_edge(
         frame.route_edges, frame.edge), network, junctions, horizon), frame.route_edges, network, junctions, horizon)
     i, j = np.triu_indices(len(rows), 1)
     share = (junctions.area_index[links[i], links[j]] >= 0) & (rows[i] != rows[j])

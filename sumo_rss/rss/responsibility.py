@@ -86,7 +86,7 @@ class _Episodes:
     t_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
     must_brake: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
     front_limited: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
-    brake_correct: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    brake_correct: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
     owed_lat: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     trigger: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     roles: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
@@ -217,7 +217,7 @@ class ResponsibilityTracker:
         idx = np.flatnonzero(as_a | as_b)
         car = np.where(as_a[idx], 0, 1)
         return OwedResponses(
-            t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx],
+            t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx, car],
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
@@ -321,7 +321,7 @@ class ResponsibilityTracker:
         before = np.clip((rho - (tau - dt)) / dt, 0.0, 1.0) if dt > 0.0 else np.zeros_like(rho)
         braker = e.must_brake
         front = e.front_limited
-        brake_needed = np.where(e.brake_correct[:, None], p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
+        brake_needed = np.where(e.brake_correct, p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
         moving = v_lon >= STOPPED_SPEED
 
         actual = np.zeros(cars.shape + (N_CONSTRAINTS,))

@@ -59,7 +59,7 @@ class SignalRule:
         links = self._approach_links(frame)
         # Whether each car could stop at its stop line from here at b_min.
         can_stop = snapshot.speed ** 2 / (2.0 * frame.params.lon_brake_min) <= \
-            self.network.lane_length[lane] - snapshot.lane_pos
+            self.network.lane_length[lane] - frame.lane_pos
         # Cars that approached a signalised link at the step before and left the approach lane (onto the link's
         # internal lane, or past it within one step).
         was_approaching = np.isin(snapshot.ids, list(self._approach)) if self._approach else \

@@ -42,6 +42,7 @@ SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the o
 FIRST_INTERSECTION_CODE = 3
 # Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
 RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
+WRONG_WAY_COS = -0.5  # a car heading more than 120° away from its lane's direction drives against it
 RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
 
 
@@ -54,8 +55,10 @@ class VehicleFrame:
     a two-way road recompute them in the reference frame.
     """
 
-    lane: np.ndarray  # lane index in the network
-    edge: np.ndarray  # edge index
+    lane: np.ndarray  # lane index in the network (a wrong-way car: the lane of its own edge nearest the other's)
+    edge: np.ndarray  # edge index (a wrong-way car: its own edge)
+    lane_pos: np.ndarray  # front bumper along ``lane``, SUMO's lane position [m]
+    wrong_way: np.ndarray  # driving on the opposite edge of a two-way road (overtaking through the oncoming lane)
     cx: np.ndarray  # centre x [m]
     cy: np.ndarray  # centre y [m]
     s: np.ndarray  # centre's s along its own lane [m]
@@ -103,6 +106,9 @@ class PairSituations:
     priority: np.ndarray | None = None
     in_front: np.ndarray | None = None
     area: np.ndarray | None = None
+    # Roads: whether a / b drives in the oncoming lane of a two-way road (VehicleFrame.wrong_way).
+    wrong_way_a: np.ndarray | None = None
+    wrong_way_b: np.ndarray | None = None
 
     @property
     def safe_rules(self) -> np.ndarray:
@@ -137,7 +143,9 @@ class PairSituations:
             "v_lat_b", "lon_d_min", "lat_d_min", "lon_safe", "lat_safe")}
         rules = np.concatenate([p.safe_rules for p in parts])
         return PairSituations(**fields, rules=rules, priority=column("priority", 0, np.int8),
-                              in_front=column("in_front", 0, np.int8), area=column("area", "", object))
+                              in_front=column("in_front", 0, np.int8), area=column("area", "", object),
+                              wrong_way_a=column("wrong_way_a", False, bool),
+                              wrong_way_b=column("wrong_way_b", False, bool))
 
 
 def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
@@ -161,6 +169,20 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
     hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
     s, d, lane_heading = network.frenet(lane, cx, cy, hint)
+    lane_pos = snapshot.lane_pos
+    # SUMO puts a car that overtakes through the oncoming lane on the opposite edge's lane (heading against it);
+    # it drives on its own edge, in the wrong lane: framed on its own edge's lane next to the other direction.
+    # (SUMO's lateral speed is the car's own: + = left of its direction of travel.)
+    wrong_way = (network.edge_opposite[network.lane_edge[lane]] >= 0) & \
+        (np.cos(snapshot.heading - lane_heading) < WRONG_WAY_COS)
+    if wrong_way.any():
+        k = np.flatnonzero(wrong_way)
+        lane = lane.copy()
+        lane[k] = _innermost_lane(network)[network.edge_opposite[network.lane_edge[lane[k]]]]
+        s, d, lane_heading = (x.copy() for x in (s, d, lane_heading))
+        s[k], d[k], lane_heading[k] = network.frenet(lane[k], cx[k], cy[k])
+        lane_pos = lane_pos.copy()
+        lane_pos[k] = (s[k] + 0.5 * snapshot.length[k]) * network.lane_length[lane[k]] / _shape_length(network, lane[k])
     # SUMO's speed is along the lane and its lateral speed across it: the lane frame's velocity as it is. (The
     # heading minus the lane direction would read phantom lateral speed on curves stored as polylines.)
     v_lon, v_lat = snapshot.speed, snapshot.lat_speed
@@ -169,7 +191,8 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
     forward = np.maximum(v_lon, 0.0)
     return VehicleFrame(
-        lane=lane, edge=network.lane_edge[lane], cx=cx, cy=cy, s=s, d=d, lane_heading=lane_heading,
+        lane=lane, edge=network.lane_edge[lane], lane_pos=lane_pos, wrong_way=wrong_way, cx=cx, cy=cy, s=s, d=d,
+        lane_heading=lane_heading,
         rel_heading=theta, speed=speed,
         v_lon=v_lon, v_lat=v_lat, half_lon=half_lon, half_lat=half_lat,
         reach=lon_reach(speed, params if candidate_params is None else candidate_params, params.lon_brake_min_correct),
@@ -177,6 +200,15 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         stop_max=stopping_distance(forward, params.lon_brake_max),
         lat_reach_as_left=lateral_reach(-v_lat, params), lat_reach_as_right=lateral_reach(v_lat, params),
         route_edges=route_edges, params=params)
+
+
+def _innermost_lane(network: RoadNetwork) -> np.ndarray:
+    """[edges] each edge's leftmost lane (next to the other direction of a two-way road), -1 for none."""
+    order = np.lexsort((network.lane_index, network.lane_edge))
+    last = order[np.r_[network.lane_edge[order][1:] != network.lane_edge[order][:-1], True]]
+    innermost = np.full(len(network.edge_ids), -1, dtype=int)
+    innermost[network.lane_edge[last]] = last
+    return innermost
 
 
 def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.ndarray, np.ndarray]:
@@ -231,8 +263,10 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     # On one edge, compare positions along the edge (SUMO's lane positions: each lane's shape length scaled to
     # the edge's length; the lanes of a curved edge differ in shape length).
     j_front_same_edge = same_edge & (_along_edge(frame, j, network) >= _along_edge(frame, i, network))
-    same_dir = same_edge | j_ahead | i_ahead
-    opposite = ~same_dir & (network.edge_opposite[ei] == ej) & (ej >= 0)
+    # On the two edges of a two-way road the cars drive towards each other, also where a turnaround at its end
+    # chains the edges (a route that turns there, or any route where it is unknown).
+    opposite = (network.edge_opposite[ei] == ej) & (ej >= 0)
+    same_dir = (same_edge | j_ahead | i_ahead) & ~opposite
     kind = np.where(same_dir, 0, np.where(opposite, 1, -1))
     j_is_ref = same_dir & (j_ahead | j_front_same_edge)
     return kind, np.where(j_is_ref, j, i), np.where(j_is_ref, i, j)
@@ -356,12 +390,15 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
         lat_left_o[opposite] = lateral_reach(-v_lat_o[opposite], p_x)
         lat_right_o[opposite] = lateral_reach(v_lat_o[opposite], p_x)
     lon_d_min = combine_same_dir(reach_o, stop_r, p.min_lon_gap[other])
-    if opposite.size:  # both cars in their correct lanes: both brake at b_corr; speeds towards each other
+    if opposite.size:  # speeds towards each other; a car in its correct lane brakes at b_corr, one in the
+        # oncoming lane at b_min
         r, o = ref[opposite], other[opposite]
         p_r, p_o = p.take(r), p.take(o)
         lon_d_min[opposite] = combine_opposite(
-            lon_reach(np.maximum(frame.v_lon[r], 0.0), p_r, p_r.lon_brake_min_correct),
-            lon_reach(np.maximum(-v_lon_o[opposite], 0.0), p_o, p_o.lon_brake_min_correct),
+            lon_reach(np.maximum(frame.v_lon[r], 0.0), p_r,
+                      np.where(frame.wrong_way[r], p_r.lon_brake_min, p_r.lon_brake_min_correct)),
+            lon_reach(np.maximum(-v_lon_o[opposite], 0.0), p_o,
+                      np.where(frame.wrong_way[o], p_o.lon_brake_min, p_o.lon_brake_min_correct)),
             p_r.min_lon_gap, p_o.min_lon_gap)
     lat_d_min = combine_lateral(np.where(other_left, lat_left_o, frame.lat_reach_as_left[ref]),
                                 np.where(other_left, frame.lat_reach_as_right[ref], lat_right_o),
@@ -386,4 +423,6 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
         v_lon_a=np.where(a_is_ref, v_ref_lon, v_other_lon), v_lon_b=np.where(a_is_ref, v_other_lon, v_ref_lon),
         v_lat_a=np.where(a_is_ref, v_lat_r, v_lat_o), v_lat_b=np.where(a_is_ref, v_lat_o, v_lat_r),
         lon_d_min=lon_d_min, lat_d_min=lat_d_min,
-        lon_safe=is_safe_distance(lon_gap, lon_d_min), lat_safe=is_safe_distance(lat_gap, lat_d_min))
+        lon_safe=is_safe_distance(lon_gap, lon_d_min), lat_safe=is_safe_distance(lat_gap, lat_d_min),
+        wrong_way_a=frame.wrong_way[np.where(a_is_ref, ref, other)],
+        wrong_way_b=frame.wrong_way[np.where(a_is_ref, other, ref)])
