@@ -143,3 +143,27 @@ def test_oncoming_cars_stay_a_pair_until_their_bodies_have_passed():
     along = 0.5 * LENGTH + 0.5 * (LENGTH * np.cos(theta) + WIDTH * np.sin(theta))
     assert pairs.lon_gap[0] == pytest.approx(0.9 - along, abs=0.05) and pairs.dangerous[0]
     assert len(passing(n_in - 200.0 + LENGTH + LENGTH + 0.5)) == 0
+
+
+def test_a_car_standing_still_lies_along_its_lane_whatever_its_noise_level_lateral_speed():
+    """A placed ego at rest had lateral speeds of ±1e-5 m/s (its position's rounding); the footprint followed the
+    direction of motion, arctan2(1e-5, 0) = 90°, so the car took its length across the road, and two cars standing
+    beside it in the next lanes were in lateral danger (gaps 0.24 m for the real 1.66 m)."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    cars = [("ego", "hw0_1", 300.0, 1e-5), ("left", "hw0_2", 300.0, 0.0), ("right", "hw0_0", 300.0, 0.0)]
+    poses = [_front_bumper(net, lane, pos) for _, lane, pos, _ in cars]
+    n = len(cars)
+    lanes = np.array([c[1] for c in cars])
+    snapshot = WorldSnapshot(
+        time=0.0, ids=np.array([c[0] for c in cars]), x=np.array([p[0] for p in poses]),
+        y=np.array([p[1] for p in poses]), heading=np.array([p[2] for p in poses]), speed=np.zeros(n),
+        accel=np.zeros(n), lat_speed=np.array([c[3] for c in cars]), length=np.full(n, LENGTH),
+        width=np.full(n, WIDTH), lane_id=lanes, edge_id=np.full(n, "hw0"), lane_index=np.array([1, 2, 0]),
+        lane_pos=np.full(n, 300.0), lat_pos=np.zeros(n), vclass=np.array(["ego", "background", "background"]),
+        vtype=np.full(n, "car"), signals=np.zeros(n, int), route_index=np.zeros(n, int), route_edges=None)
+    params = RssParamArrays.stack([preset_params("ad_rss", "background")] * n)
+    pairs = evaluate(snapshot, vehicle_frame(snapshot, net, params, RouteTable(net).remaining(snapshot)), net)
+    beside = np.flatnonzero(np.isin(snapshot.ids[pairs.a], ["ego"]) | np.isin(snapshot.ids[pairs.b], ["ego"]))
+    assert len(beside) == 2
+    assert pairs.lat_gap[beside] == pytest.approx([3.5 - WIDTH] * 2, abs=1e-6)
+    assert not pairs.dangerous[beside].any()

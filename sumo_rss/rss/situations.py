@@ -42,6 +42,7 @@ SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the o
 FIRST_INTERSECTION_CODE = 3
 # Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
 RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
+FOOTPRINT_MIN_SPEED = 0.05  # [m/s] below this a car's footprint lies along its lane (its motion has no direction)
 WRONG_WAY_COS = -0.5  # a car heading more than 120° away from its lane's direction drives against it
 RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
 
@@ -186,8 +187,10 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     # SUMO's speed is along the lane and its lateral speed across it: the lane frame's velocity as it is. (The
     # heading minus the lane direction would read phantom lateral speed on curves stored as polylines.)
     v_lon, v_lat = snapshot.speed, snapshot.lat_speed
-    theta = np.arctan2(v_lat, np.maximum(v_lon, 0.0))
     speed = np.hypot(v_lon, v_lat)
+    # The footprint turns with the direction of motion; a car standing still lies along its lane (the direction of
+    # noise-level lateral speeds, such as a placed ego's 1e-5 m/s, turned a stopped car across the road).
+    theta = np.where(speed < FOOTPRINT_MIN_SPEED, 0.0, np.arctan2(v_lat, np.maximum(v_lon, 0.0)))
     half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
     forward = np.maximum(v_lon, 0.0)
     return VehicleFrame(
