@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.planner.guard import ProperResponseGuard
+from sumo_rss.planner.guard import ProperResponseGuard, avoiding_decel
 from sumo_rss.planner.lanes import lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
@@ -111,3 +111,37 @@ def test_a_move_towards_a_car_beside_is_judged_with_each_cars_own_lateral_parame
     done = guard.apply(snapshot, 0, frame, planned, nothing_owed)
     assert (done.y + 5.25) / DT == pytest.approx(0.0 if blocked else side * 0.3, abs=1e-6)
     assert guard.counts.lat_predictive == int(blocked)
+
+
+@pytest.mark.parametrize("gap, v_lead, b_lead, expected", [
+    (50.0, 0.0, 0.0, 25.0 ** 2 / 100.0),  # a car standing 50 m ahead: stop within the gap
+    (10.0, 20.0, 0.0, 5.0 ** 2 / 20.0),  # 5 m/s faster, the leader going on: match its speed within the gap
+    (30.1, 25.0, 8.0, 25.0 ** 2 / (2.0 * (30.1 + 25.0 ** 2 / 16.0))),  # equal speeds, the leader stops first
+    (20.0, 30.0, 0.0, 0.0),  # a faster leader: nothing
+    (5.0, 15.0, 2.0, 2.0 + 10.0 ** 2 / 10.0),  # the speeds meet while both move: (a - b)·gap·2 = Δv²
+])
+def test_the_deceleration_that_avoids_a_car_ahead_by_hand(gap, v_lead, b_lead, expected):
+    assert avoiding_decel(np.array([gap]), 25.0, np.array([v_lead]), np.array([b_lead]))[0] == \
+        pytest.approx(expected, rel=1e-6)
+
+
+def test_emergency_braking_up_to_b_max_where_b_min_would_hit_the_car_ahead(frame):
+    """A car that cut in 30 m ahead of the ego and brakes at 8 m/s² from 25 m/s: the ego owes it no braking
+    (rss.md §5: the lateral response), but braking at b_min would hit it; it brakes as hard as avoiding it needs
+    (4.59 m/s² to stop 1 m behind it), up to b_max. The planner had ramped its braking up to its 5 m/s² limit and
+    hit the car at 15 m/s."""
+    ego = _ego_alone(25.0)
+    lead_x = 300.0 + 30.0 + 4.5  # front bumpers: a 30 m gap
+    both = WorldSnapshot(**{**vars(ego), **{k: np.concatenate([getattr(ego, k), np.array([v])]) for k, v in {
+        "ids": "cut", "x": lead_x, "y": -5.25, "heading": 0.0, "speed": 25.0, "accel": -8.0, "lat_speed": 0.0,
+        "length": 4.5, "width": 1.8, "lane_id": "hw0_1", "edge_id": "hw0", "lane_index": 1, "lane_pos": lead_x,
+        "lat_pos": 0.0, "vclass": "background", "vtype": "car", "signals": 0, "route_index": 0}.items()}})
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    nothing = OwedResponses(*(np.zeros(0, dtype=a.dtype) for a in vars(_owing_brake(0.0)).values()))
+    braking = guard.apply(both, 0, frame, TrajectoryState(302.5, -5.25, 0.0, 25.0, 0.0), nothing)
+    needed = float(avoiding_decel(np.array([30.0 - 1.0]), 25.0, np.array([25.0]), np.array([8.0]))[0])
+    assert needed == pytest.approx(25.0 ** 2 / (2.0 * (29.0 + 25.0 ** 2 / 16.0))) and braking.accel == pytest.approx(-(needed + 0.1))
+    assert guard.counts.emergency == 1
+    # A leader braking at 2 m/s²: b_min is enough, the plan stands.
+    mild = WorldSnapshot(**{**vars(both), "accel": np.array([0.0, -2.0])})
+    assert guard.apply(mild, 0, frame, TrajectoryState(302.5, -5.25, 0.0, 25.0, 0.0), nothing).accel == 0.0

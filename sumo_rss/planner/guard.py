@@ -9,7 +9,11 @@ Before the planned state for the next step is sent to SUMO it is restricted by
 - two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
   gap to a car ahead in its path is not RSS-safe (where the ego owes that car no longitudinal braking, e.g. it
   cut in, the ego may keep up with it but not close in), and no lateral motion that would make a pair
-  laterally unsafe while it is longitudinally unsafe.
+  laterally unsafe while it is longitudinally unsafe;
+- emergency braking: where a car ahead in its path, going on as it does (braking at its present deceleration),
+  would be hit unless the ego brakes harder than b_min, the ego brakes as hard as that needs, up to its b_max
+  (a car that cut in close and then braked hard: the planner, within its comfort limits, brakes at most 5 m/s²
+  and ramps up to it).
 Every restriction that changes the command is counted. Units: m, s, m/s, m/s².
 """
 from __future__ import annotations
@@ -29,6 +33,7 @@ ACCEL_MARGIN = 0.1  # [m/s²] kept inside every acceleration bound (the auditor'
 STOPPED = 0.05  # [m/s]
 COUNT_TOLERANCE = 1e-3  # [m/s] smaller lateral corrections are made but not counted as interventions
 NEIGHBOURHOOD = 150.0  # [m] other cars farther than this are ignored
+EMERGENCY_GAP = 1.0  # [m] emergency braking stops the ego this far behind the car ahead
 
 
 @dataclass
@@ -39,12 +44,39 @@ class GuardCounts:
     lat_owed: int = 0
     lon_predictive: int = 0
     lat_predictive: int = 0
+    emergency: int = 0
     steps: int = 0
     log: list[tuple[float, str]] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, int]:
         return {"lon_owed": self.lon_owed, "lat_owed": self.lat_owed, "lon_predictive": self.lon_predictive,
-                "lat_predictive": self.lat_predictive, "steps": self.steps}
+                "lat_predictive": self.lat_predictive, "emergency": self.emergency, "steps": self.steps}
+
+
+def avoiding_decel(gap: np.ndarray, v: float, v_lead: np.ndarray, b_lead: np.ndarray) -> np.ndarray:
+    """[m/s²] The least constant deceleration that keeps a car at ``v`` [m/s] from reaching a car ``gap`` [m] ahead
+    at ``v_lead`` that brakes at ``b_lead`` (≥ 0) until it stands. The gap is least where the speeds meet while
+    both move, or at the end, both standing; found by bisection (it shrinks as the deceleration grows)."""
+    gap, v_lead, b_lead = (np.asarray(x, dtype=float) for x in (gap, v_lead, b_lead))
+    lead_stop = np.where(v_lead <= 0.0, 0.0,
+                         np.where(b_lead > 0.0, v_lead * v_lead / (2.0 * np.maximum(b_lead, 1e-9)), np.inf))
+
+    def least_gap(a: np.ndarray) -> np.ndarray:
+        own_stop = v * v / (2.0 * a)
+        at_rest = gap + lead_stop - own_stop  # both stand (inf: the leader goes on)
+        # Speeds meet at t = (v - v_lead) / (a - b_lead) if that comes before either stands.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (v - v_lead) / (a - b_lead)
+            before = (t > 0.0) & (t < v / a) & (t < np.where(b_lead > 0.0, v_lead / np.maximum(b_lead, 1e-9), np.inf))
+            closing = (v - v_lead) * t - 0.5 * (a - b_lead) * t * t
+        return np.minimum(at_rest, np.where(before, gap - closing, np.inf))
+
+    low, high = np.full(gap.shape, 1e-3), np.full(gap.shape, 1e3)
+    for _ in range(40):
+        mid = 0.5 * (low + high)
+        ok = least_gap(mid) >= 0.0
+        high, low = np.where(ok, mid, high), np.where(ok, low, mid)
+    return np.where(least_gap(np.full(gap.shape, 1e-3)) >= 0.0, 0.0, high)
 
 
 class ProperResponseGuard:
@@ -113,6 +145,16 @@ class ProperResponseGuard:
             if cap < accel:
                 c.lon_predictive += 1
                 accel = cap
+        # 2b. Emergency braking for a car in the path that would be hit otherwise.
+        if np.any(in_path) and v0 >= STOPPED:
+            gap = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])
+            b_lead = np.maximum(-snapshot.accel[near[others]][in_path], 0.0)
+            needed = float(np.max(avoiding_decel(np.maximum(gap - EMERGENCY_GAP, 0.0), v0, v_o[in_path], b_lead)))
+            if needed > float(p_e.lon_brake_min[0]):
+                cap = -min(needed + ACCEL_MARGIN, float(p_e.lon_brake_max[0]) - ACCEL_MARGIN)
+                if cap < accel:
+                    c.emergency += 1
+                    accel = cap
         v1 = max(v0 + accel * dt, 0.0)
 
         # 3. Owed lateral responses: speed towards the other inside the envelope. The auditor measures the
