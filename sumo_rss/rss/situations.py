@@ -40,10 +40,10 @@ class SituationType(str, Enum):
 SITUATION_CODES = tuple(SituationType)  # index = code in arrays
 SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the other
 FIRST_INTERSECTION_CODE = 3
-# Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
-RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
 FOOTPRINT_MIN_SPEED = 0.05  # [m/s] below this a car's footprint lies along its lane (its motion has no direction)
 WRONG_WAY_COS = -0.5  # a car heading more than 120° away from its lane's direction drives against it
+# Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
+RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
 RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
 
 
