@@ -27,7 +27,7 @@ from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, open_output, output_elements
 from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
 from .signals import SignalStates
-from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, WRONG_WAY_COS, PairSituations
+from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane
 
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
@@ -218,13 +218,15 @@ class FcdReader:
                           f"steps were {self._step:g} s apart (steps missing, or another output period): RSS is "
                           "judged at the steps written only", stacklevel=3)
 
-    def _against_lane(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
-        """Whether each car heads against its lane (on the opposite edge of a two-way road: overtaking)."""
+    def _against_lane(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray,
+                      length: np.ndarray) -> np.ndarray:
+        """Whether each car (front bumper at x, y [m]) drives against its lane (:func:`situations.against_lane`)."""
         against = np.zeros(len(lane), dtype=bool)
         k = np.flatnonzero(self.network.edge_opposite[self.network.lane_edge[lane]] >= 0)
         if k.size:
-            lane_heading = self.network.frenet(lane[k], x[k], y[k])[2]
-            against[k] = np.cos(heading[k] - lane_heading) < WRONG_WAY_COS
+            cx, cy = x[k] - 0.5 * length[k] * np.cos(heading[k]), y[k] - 0.5 * length[k] * np.sin(heading[k])
+            s, _, lane_heading = self.network.frenet(lane[k], cx, cy)
+            against[k] = against_lane(self.network, lane[k], s, lane_heading, heading[k], length[k])
         return against
 
     def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, jumped: np.ndarray, dt: float,
@@ -317,7 +319,7 @@ class FcdReader:
             lat_speed = np.where(jumped, 0.0, lat_moved / dt) if dt else np.zeros(len(ids))
             # SUMO's speedLat is the car's own (+ = left of its travel); a car overtaking through the oncoming lane
             # has its posLat in that lane's frame, so its movement there is the other way round.
-            lat_speed = np.where(self._against_lane(lane, x, y, heading), -lat_speed, lat_speed)
+            lat_speed = np.where(self._against_lane(lane, x, y, heading, length), -lat_speed, lat_speed)
         self._prev = {v: (s, int(e), lt) for v, s, e, lt in zip(ids, speed, edge, edge_lat)}
         self._prev_time = time
         is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)

@@ -41,7 +41,7 @@ SITUATION_CODES = tuple(SituationType)  # index = code in arrays
 SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the other
 FIRST_INTERSECTION_CODE = 3
 FOOTPRINT_MIN_SPEED = 0.05  # [m/s] below this a car's footprint lies along its lane (its motion has no direction)
-WRONG_WAY_COS = -0.5  # a car heading more than 120° away from its lane's direction drives against it
+WRONG_WAY_COS = -0.94  # a car heading within 20° of its lane's opposite direction drives against it
 # Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
 RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
 RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP = 1, 2, 4  # intersections (rss.md §4)
@@ -174,8 +174,7 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     # SUMO puts a car that overtakes through the oncoming lane on the opposite edge's lane (heading against it);
     # it drives on its own edge, in the wrong lane: framed on its own edge's lane next to the other direction.
     # (SUMO's lateral speed is the car's own: + = left of its direction of travel.)
-    wrong_way = (network.edge_opposite[network.lane_edge[lane]] >= 0) & \
-        (np.cos(snapshot.heading - lane_heading) < WRONG_WAY_COS)
+    wrong_way = against_lane(network, lane, s, lane_heading, snapshot.heading, snapshot.length)
     if wrong_way.any():
         k = np.flatnonzero(wrong_way)
         lane = lane.copy()
@@ -203,6 +202,17 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         stop_max=stopping_distance(forward, params.lon_brake_max),
         lat_reach_as_left=lateral_reach(-v_lat, params), lat_reach_as_right=lateral_reach(v_lat, params),
         route_edges=route_edges, params=params)
+
+
+def against_lane(network: RoadNetwork, lane: np.ndarray, s: np.ndarray, lane_heading: np.ndarray,
+                 heading: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Whether cars drive against their lanes: on an edge of a two-way road (SUMO's lane of a car overtaking
+    through the oncoming lane), heading within 20° of the lane's opposite direction (``lane_heading`` [rad] at the
+    centre, ``s`` [m] along it), with the whole length along the lane. Not a long vehicle coming out of a U-turn
+    onto the lane, in its correct lane: SUMO's heading points from its rear, still in the turn, to its front (up to
+    ~156° against the lane for a 12 m bus)."""
+    return (network.edge_opposite[network.lane_edge[lane]] >= 0) & (np.cos(heading - lane_heading) < WRONG_WAY_COS) & \
+        (s >= 0.5 * length) & (s <= _shape_length(network, lane) - 0.5 * length)
 
 
 def _innermost_lane(network: RoadNetwork) -> np.ndarray:
