@@ -45,7 +45,6 @@ class Permissions:
 @dataclass(frozen=True)
 class NetTopology:
     edges: dict[str, EdgeInfo]
-    successors: dict[str, frozenset[str]]
     lanes: dict[str, tuple[Permissions, ...]]  # by edge, by lane index
     lane_links: dict[tuple[str, str], frozenset[tuple[int, int]]]  # (from, to) edge → (from, to) lane indices
 
@@ -53,7 +52,7 @@ class NetTopology:
         """Whether ``to_edge`` follows ``from_edge``, for ``vclass`` (None: for any class) through a connection
         whose lanes both permit it."""
         if vclass is None:
-            return to_edge in self.successors.get(from_edge, frozenset())
+            return (from_edge, to_edge) in self.lane_links
         start, end = self.lanes[from_edge], self.lanes[to_edge]
         return any(start[i].permits(vclass) and end[j].permits(vclass)
                    for i, j in self.lane_links.get((from_edge, to_edge), ()))
@@ -73,7 +72,6 @@ def read_topology(net_file: Path) -> NetTopology:
 @lru_cache(maxsize=16)
 def _read_topology(net_file: Path, size: int, modified_ns: int) -> NetTopology:
     edges: dict[str, EdgeInfo] = {}
-    successors: dict[str, set[str]] = {}
     lanes: dict[str, tuple[Permissions, ...]] = {}
     lane_links: dict[tuple[str, str], set[tuple[int, int]]] = {}
     current: tuple[str, list[float], list[float], list[Permissions]] | None = None
@@ -96,7 +94,6 @@ def _read_topology(net_file: Path, size: int, modified_ns: int) -> NetTopology:
             elif event == "end" and elem.tag == "connection":
                 src, dst = elem.get("from", ""), elem.get("to", "")
                 if not src.startswith(":") and not dst.startswith(":"):
-                    successors.setdefault(src, set()).add(dst)
                     lane_links.setdefault((src, dst), set()).add((int(elem.get("fromLane", "0")),
                                                                   int(elem.get("toLane", "0"))))
                 elem.clear()
@@ -104,5 +101,4 @@ def _read_topology(net_file: Path, size: int, modified_ns: int) -> NetTopology:
         raise ValueError(f"{net_file}: not a readable SUMO network ({exc})") from exc
     if not edges:
         raise ValueError(f"{net_file}: no edges found; is this a SUMO .net.xml?")
-    return NetTopology(edges, {k: frozenset(v) for k, v in successors.items()}, lanes,
-                       {k: frozenset(v) for k, v in lane_links.items()})
+    return NetTopology(edges, lanes, {k: frozenset(v) for k, v in lane_links.items()})
