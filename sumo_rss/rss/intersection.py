@@ -158,14 +158,22 @@ def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarr
     lane where that is unknown, -1)."""
     inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
     to_end = network.lane_length[lane] - lane_pos
-    cand = junctions.lane_links[lane]
-    ok = (cand >= 0) & (to_end[:, None] <= horizon) & \
-        ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
-    r, c = np.nonzero(ok)
+    r, links = _links_ahead(junctions, lane, to_end, next_edge, horizon)
     rows = np.concatenate([inside, r])
-    links = np.concatenate([junctions.lane_link[lane[inside]], cand[r, c]])
+    links = np.concatenate([junctions.lane_link[lane[inside]], links])
     pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + lane_pos[inside], -to_end[r]])
     return rows, links, pos
+
+
+def _links_ahead(junctions: JunctionModel, lane: np.ndarray, to_start: np.ndarray, next_edge: np.ndarray,
+                 horizon: float) -> tuple[np.ndarray, np.ndarray]:
+    """(index into ``lane``, link) of the links from each lane whose start is within ``horizon`` [m]
+    (``to_start``) that lead into the route's ``next_edge`` (every link where that is unknown, -1)."""
+    cand = junctions.lane_links[lane]
+    ok = (cand >= 0) & (to_start[:, None] <= horizon) & \
+        ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
+    r, c = np.nonzero(ok)
+    return r, cand[r, c]
 
 
 def entries_beyond(rows: np.ndarray, links: np.ndarray, pos: np.ndarray, route_edges: np.ndarray,
@@ -182,13 +190,11 @@ def entries_beyond(rows: np.ndarray, links: np.ndarray, pos: np.ndarray, route_e
         lane = junctions.link_to_lane[links]
         start = after + network.lane_length[lane]  # [m] to the start of the next link
         next_edge = next_route_edge(route_edges[rows], network.lane_edge[lane])
-        cand = junctions.lane_links[lane]
-        ok = (cand >= 0) & (start[:, None] <= horizon) & (next_edge[:, None] >= 0) & \
-            (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None])
-        r, c = np.nonzero(ok)
+        known = np.flatnonzero(next_edge >= 0)  # beyond the next junction only along a known route
+        r, links = _links_ahead(junctions, lane[known], start[known], next_edge[known], horizon)
         if r.size == 0:
             break
-        rows, links, start = rows[r], cand[r, c], start[r]
+        rows, start = rows[known[r]], start[known[r]]
         found.append((rows, links, -start))
         after = start + junctions.link_length[links]
     return tuple(np.concatenate(parts) for parts in zip(*found))  # type: ignore[return-value]
