@@ -58,8 +58,10 @@ def avoiding_decel(gap: np.ndarray, v: float, v_lead: np.ndarray, b_lead: np.nda
     at ``v_lead`` that brakes at ``b_lead`` (≥ 0) until it stands. The gap is least where the speeds meet while
     both move, or at the end, both standing; found by bisection (it shrinks as the deceleration grows)."""
     gap, v_lead, b_lead = (np.asarray(x, dtype=float) for x in (gap, v_lead, b_lead))
+    braking = b_lead > 0.0
+    lead_time = np.where(braking, v_lead / np.maximum(b_lead, 1e-9), np.inf)  # [s] until the leader stands
     lead_stop = np.where(v_lead <= 0.0, 0.0,
-                         np.where(b_lead > 0.0, v_lead * v_lead / (2.0 * np.maximum(b_lead, 1e-9)), np.inf))
+                         np.where(braking, v_lead * v_lead / (2.0 * np.maximum(b_lead, 1e-9)), np.inf))  # [m]
 
     def least_gap(a: np.ndarray) -> np.ndarray:
         own_stop = v * v / (2.0 * a)
@@ -67,7 +69,7 @@ def avoiding_decel(gap: np.ndarray, v: float, v_lead: np.ndarray, b_lead: np.nda
         # Speeds meet at t = (v - v_lead) / (a - b_lead) if that comes before either stands.
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (v - v_lead) / (a - b_lead)
-            before = (t > 0.0) & (t < v / a) & (t < np.where(b_lead > 0.0, v_lead / np.maximum(b_lead, 1e-9), np.inf))
+            before = (t > 0.0) & (t < v / a) & (t < lead_time)
             closing = (v - v_lead) * t - 0.5 * (a - b_lead) * t * t
         return np.minimum(at_rest, np.where(before, gap - closing, np.inf))
 
@@ -134,9 +136,9 @@ class ProperResponseGuard:
         p_o = p_all.take(near[others])
         lat_min_now = formulas.lat_safe_distance(0.0, 0.0, p_e, p_o)
         in_path = (ds > 0.0) & ~formulas.is_safe_distance(lat_gap, lat_min_now)
+        gap_ahead = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])  # bumpers
         if accel > 0.0 and np.any(in_path):
-            gap = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])
-            v_up = formulas.max_safe_speed_behind(gap, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
+            v_up = formulas.max_safe_speed_behind(gap_ahead, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
             # A car going its way that the ego owes no longitudinal braking (it cut in): the ego may keep up with
             # it, not close in.
             cut_in = np.isin(snapshot.ids[near[others]][in_path], list(owed.without_lon_duty()))
@@ -147,9 +149,9 @@ class ProperResponseGuard:
                 accel = cap
         # 2b. Emergency braking for a car in the path that would be hit otherwise.
         if np.any(in_path) and v0 >= STOPPED:
-            gap = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])
             b_lead = np.maximum(-snapshot.accel[near[others]][in_path], 0.0)
-            needed = float(np.max(avoiding_decel(np.maximum(gap - EMERGENCY_GAP, 0.0), v0, v_o[in_path], b_lead)))
+            needed = float(np.max(avoiding_decel(np.maximum(gap_ahead - EMERGENCY_GAP, 0.0), v0, v_o[in_path],
+                                                 b_lead)))
             if needed > float(p_e.lon_brake_min[0]):
                 cap = -min(needed + ACCEL_MARGIN, float(p_e.lon_brake_max[0]) - ACCEL_MARGIN)
                 if cap < accel:
