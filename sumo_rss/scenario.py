@@ -394,15 +394,14 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
             raise f.error("depart_speed", f"expected a speed in [0, 100] m/s or one of "
                                           f"{', '.join(repr(v) for v in DEPART_SPEEDS)}", speed)
         vtype = f.string("vtype", None, choices=sorted(names)) if f.has("vtype") else None
+        drawn = [v for v in vtypes if (v.id == vtype if vtype else v.probability > 0)]  # the flow's vTypes
         if not isinstance(speed, str):
-            slowest = min((v for v in vtypes if (v.id == vtype if vtype else v.probability > 0)),
-                          key=lambda v: v.max_speed)
+            slowest = min(drawn, key=lambda v: v.max_speed)
             check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
-                                f"the max_speed of vType {slowest.id!r}")
+                               f"the max_speed of vType {slowest.id!r}")
         depart_lane = read_depart_lane(f, route[0], topology)
-        for v in vtypes:
-            if (v.id == vtype) if vtype else v.probability > 0:
-                check_route_permits(f, route, v.vclass, f"vType {v.id!r}", topology, depart_lane)
+        for v in drawn:
+            check_route_permits(f, route, v.vclass, f"vType {v.id!r}", topology, depart_lane)
         flows.append(FlowSpec(
             id=_sumo_id(f, "id", f.string("id", f"flow{i}")), route=route,
             veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
