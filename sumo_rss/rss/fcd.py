@@ -31,8 +31,6 @@ from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSitua
 
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
-
-
 STEP_TIME_TOLERANCE = 1e-6  # [s] a report at a step's time (both written with SUMO's few decimals) belongs to it
 
 
