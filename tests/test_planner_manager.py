@@ -69,6 +69,25 @@ def test_the_speed_window_tops_out_at_1_2_times_the_desired_speed(desired, speed
     assert (manager.context is not None) == proposed
 
 
+@pytest.mark.parametrize("case", ["cool-down", "speed window"])
+def test_only_eligible_cycles_count_towards_the_consistent_proposals(case):
+    """epsilon.md §2.7 step 7: the 4 consistent cycles must each meet every condition (the release clears its
+    queued proposals on "cold down" and "illegal speed"). Cycles 10.1-10.3 are ineligible (3 s after the last
+    trigger, or at 3 m/s), 10.4 on are eligible: the context comes at the 4th eligible cycle, 10.7, not at 10.4."""
+    manager = Manager(ManagerSettings(), layer_duration=1.0)
+    if case == "cool-down":
+        manager.last_trigger = 5.4
+    created = None
+    for k in range(1, 10):
+        now = round(10.0 + 0.1 * k, 1)
+        speed = 3.0 if case == "speed window" and now < 10.35 else 15.0
+        manager.propose(LEFT_NOW, now, speed, LANE, START_LANES, None)
+        if manager.context is not None:
+            created = now
+            break
+    assert created == pytest.approx(10.7)
+
+
 def test_a_context_completes_on_a_lane_change_not_on_driving_on_past_the_planning_chain():
     """merge net: the planning chain from mw_in_1 reaches only mw_merge_2 (250 m past mw_in_1). Driving straight
     on into :m2_0_1 and mw_out_1 is no lane change (epsilon.md §2.7: the lanes "consistent" with the start are

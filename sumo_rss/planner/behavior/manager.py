@@ -103,12 +103,13 @@ class Manager:
         if self.context is not None or winner is None or winner.lateral is Lat.KEEP or winner.is_cancel:
             self._proposals.clear()
             return
+        forced = mandatory is winner.lateral
+        if not forced and (now - self.last_trigger < s.cold_duration or not s.min_speed <= speed <= self.max_speed):
+            self._proposals.clear()  # the consistent cycles must all be eligible ones (as the release clears them)
+            return
         operation = sum(winner.durations[:winner.lats.index(winner.lateral)])  # time until the change starts
         self._proposals.append((winner.lateral, ego_lane, now + operation))
         self._proposals = self._proposals[-s.consistency_frames:]
-        forced = mandatory is winner.lateral
-        if not forced and (now - self.last_trigger < s.cold_duration or not s.min_speed <= speed <= self.max_speed):
-            return
         if len(self._proposals) < s.consistency_frames or operation > s.max_operation_delay:
             return
         first = self._proposals[0]
