@@ -79,8 +79,9 @@ def test_bicycle_respects_jerk_acceleration_and_steer_rate_limits():
     # From a = 0, the jerk limit 3 m/s³ allows a = 0.6 m/s² after 0.2 s (below a_max = 1).
     assert s.accel[0] == pytest.approx(0.6) and s.speed[0] == pytest.approx(10.12)
     # The steer rate limit 0.39 rad/s allows 0.078 rad after 0.2 s, but the lateral jerk limit 1.8 m/s³ caps the
-    # lateral acceleration at 0.36 m/s²: δ = atan(0.36·2.8 / 10.12²).
-    assert math.atan(s.curvature[0] * 2.8) == pytest.approx(math.atan(0.36 * 2.8 / 10.12 ** 2), abs=1e-9)
+    # lateral acceleration at 0.36 m/s²: δ = atan(0.36·L / 10.12²), L = 2.85 m (epsilon.md's default vehicle).
+    assert limits.wheelbase == 2.85
+    assert math.atan(s.curvature[0] * 2.85) == pytest.approx(math.atan(0.36 * 2.85 / 10.12 ** 2), abs=1e-9)
     braking = bicycle_step(_state(v=10.0), 0.0, 0.0, limits, 0.2)
     assert braking.accel[0] == pytest.approx(-1.0)  # brake jerk 5 m/s³ · 0.2 s
 
@@ -89,7 +90,7 @@ def test_bicycle_turns_with_the_expected_radius():
     # Steady turn at 5 m/s, curvature 0.02 1/m (lateral acceleration 0.5 m/s²): heading change v·κ·t.
     s = _state(v=5.0)
     s = BicycleState(s.x, s.y, s.heading, s.speed, s.accel, np.full(1, 0.02))
-    steer = math.atan(0.02 * 2.8)
+    steer = math.atan(0.02 * VehicleLimits().wheelbase)
     for _ in range(10):
         s = bicycle_step(s, 5.0, steer, VehicleLimits(), 0.1)
     assert s.heading[0] == pytest.approx(5.0 * 0.02 * 1.0, abs=1e-9)

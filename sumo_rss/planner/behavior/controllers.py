@@ -42,7 +42,7 @@ class IdmParams:
 class VehicleLimits:
     """Limits of the bicycle model (epsilon.md §3.1, ego values as defaults)."""
 
-    wheelbase: float = 2.8  # [m]
+    wheelbase: float = 2.85  # [m] (epsilon.md's default vehicle)
     max_accel: float = 1.0  # [m/s²]
     hard_brake: float = 5.0  # [m/s²]
     accel_jerk: float = 3.0  # [m/s³]
