@@ -51,6 +51,21 @@ def test_rule_based_belief_matches_the_one_hot_rule_far_from_its_thresholds():
     assert intention_probabilities([0.4], [0.35], [True], [True])[0, 1] == pytest.approx(0.25)
 
 
+def test_a_car_whose_lane_ends_leans_towards_the_lane_that_goes_on():
+    from sumo_rss.planner.behavior.intention import LANE_END_NOTICE, rule_belief
+
+    # Centred cars 50 m before their lane's end: urgency 1 − 50/200 = 0.75 moves towards the neighbour that exists
+    # (the left one where both do); a lane without neighbours or without an end keeps its belief.
+    p = rule_belief([0.0] * 4, [0.0] * 4, [True, False, False, True], [True, True, False, True],
+                    [50.0, 50.0, 50.0, np.inf])
+    keep = rule_belief([0.0], [0.0], [True], [True], [np.inf])[0, 0]
+    urgency = 1.0 - 50.0 / LANE_END_NOTICE
+    assert p[0, 1] == pytest.approx(urgency + (1.0 - urgency) * p[3, 1])
+    assert p[1, 2] == pytest.approx(urgency + (1.0 - urgency) * (1.0 - keep) / 2.0) and p[1, 1] == 0.0
+    assert p[2, 0] == pytest.approx(1.0)
+    np.testing.assert_allclose(p.sum(axis=1), 1.0)
+
+
 def _enumerated(probabilities, branched, k):
     """Every combination of the branched agents, ranked by probability then combination order (the reference)."""
     idx = np.flatnonzero(branched)

@@ -34,11 +34,14 @@ def intention_probabilities(offset: Any, lat_speed: Any, has_left: Any, has_righ
 
 def rule_belief(offset: Any, lat_speed: Any, has_left: Any, has_right: Any, to_lane_end: Any) -> np.ndarray:
     """:func:`intention_probabilities`, plus: an agent whose lane ends ``to_lane_end`` [m] ahead (inf: it does
-    not end) will change towards the lane on its left, surer the nearer the end."""
+    not end) will change towards the lane on its left, or, with none there, on its right (the lane that goes on),
+    surer the nearer the end."""
     probs = intention_probabilities(offset, lat_speed, has_left, has_right)
     to_end = np.asarray(to_lane_end, dtype=float)
     urgency = np.clip(1.0 - to_end / LANE_END_NOTICE, 0.0, LANE_END_CERTAINTY) * np.isfinite(to_end)
-    shift = np.where(np.asarray(has_left, dtype=bool), urgency, 0.0)
+    left, right = np.asarray(has_left, dtype=bool), np.asarray(has_right, dtype=bool)
+    shift = np.where(left | right, urgency, 0.0)
     probs = probs * (1.0 - shift)[:, None]
-    probs[:, 1] += shift
+    probs[:, 1] += np.where(left, shift, 0.0)
+    probs[:, 2] += np.where(left, 0.0, shift)
     return probs
