@@ -3,6 +3,8 @@ corridor exists, the low-speed primitive at walking pace, the previous trajector
 corridor fails, then the behaviour layer's emergency backup."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -69,3 +71,18 @@ def test_walking_pace_uses_the_primitive(frame):
     plan, _ = layer.plan(slow, lambda: _backup(frame, slow))
     assert layer.stats.outcomes["primitive"] == 1
     assert plan.s[-1] == pytest.approx(105.0) and np.all(np.diff(plan.s) >= 0.0)
+
+
+@pytest.mark.parametrize("accel, starts_at, clipped", [(1.5, 1.5, 0), (-6.5, -5.0, 1)])
+def test_the_plan_starts_at_the_measured_acceleration_within_the_dynamic_bounds(frame, accel, starts_at, clipped):
+    """The QP's start acceleration is the ego's (s̈ bounds [−5, 3] m/s²); beyond them it starts at the bound,
+    and the cycle is counted in ``start_clipped``."""
+    layer = MotionLayer(MotionSettings(), 0.1)
+    inp = _input(frame, 10.0, 100.0, 15.0)
+    measured = np.zeros(TIMES.size)
+    measured[0] = accel
+    inp = replace(inp, ego=(*inp.ego[:4], measured))
+    plan, _ = layer.plan(inp, lambda: _backup(frame, inp))
+    assert layer.stats.outcomes["ssc"] == 1
+    assert plan.s_ddot[0] == pytest.approx(starts_at, abs=1e-6)
+    assert layer.stats.start_clipped == clipped

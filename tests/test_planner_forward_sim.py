@@ -540,3 +540,13 @@ def test_a_standing_ego_does_not_creep_into_the_rss_distance_with_hold_standing(
     result = planner.plan(snap, "v0")
     assert result.trajectory.speed.max() < 0.01
     assert result.trajectory.x[-1] - result.trajectory.x[0] < 0.01
+
+
+def test_the_motion_layer_starts_from_the_measured_acceleration_not_the_behaviour_layers_clipped_one(highway):
+    """The forward simulation starts the ego at its measured acceleration clipped to its own [−5, 1] m/s²; the
+    motion layer starts from the measured 1.5 m/s² itself (docs/motion.md, Inputs)."""
+    net, _ = highway
+    snap = _snapshot([300.0], [-5.25], [20.0], ["hw0_1"])
+    snap.accel[0] = 1.5
+    result = EpsilonPlanner(net, ParamResolver(), PlannerConfig(desired_speed=30.0)).plan(snap, "v0")
+    assert result.frenet.s_ddot[0] == pytest.approx(1.5, abs=1e-6)

@@ -81,6 +81,7 @@ class EgoDriver:
             ms = np.array(motion.stats.cycle_times) * 1000.0
             stats["motion"] = {"outcomes": dict(motion.stats.outcomes),
                                "failures": dict(sorted(motion.stats.failures.items())),
+                               "start_clipped": motion.stats.start_clipped,
                                "qp_refined": motion.solver.refinements,
                                "ms_median": float(np.median(ms)) if ms.size else None,
                                "ms_p99": float(np.percentile(ms, 99)) if ms.size else None}

@@ -200,7 +200,8 @@ class EpsilonPlanner:
         if self.motion is not None:
             def emergency() -> tuple[FrenetPlan, Trajectory]:  # only built when the motion layer falls back
                 return self._rollout_plan(frame, sim, self._likely(policy_of, weight_of, n_real), vehicles, now)
-            frenet, trajectory = self.motion.plan(self._motion_input(frame, sim, r, vehicles, now, stop.distance),
+            frenet, trajectory = self.motion.plan(self._motion_input(frame, sim, r, vehicles, now, stop.distance,
+                                                                     float(snapshot.accel[ego])),
                                                   emergency)
         done = time.perf_counter()
         self.stats.backups += int(backup)
@@ -420,10 +421,13 @@ class EpsilonPlanner:
 
     @staticmethod
     def _motion_input(frame: RoadFrame, sim: SimResult, r: int, vehicles: Vehicles, now: float,
-                      stop_distance: float) -> MotionInput:
+                      stop_distance: float, measured_accel: float) -> MotionInput:
         """The motion layer's view of rollout ``r`` (the winner in its most likely scenario): the ego's and the
-        agents' simulated trajectories; the stop line as a bound on the ego's centre."""
-        ego = (*(a[r, :, 0] for a in (sim.s, sim.d, sim.heading, sim.speed)), sim.ego_accel[r])
+        agents' simulated trajectories, the ego's starting with its ``measured_accel`` [m/s²] (the forward
+        simulation starts from it clipped to its own limits); the stop line as a bound on the ego's centre."""
+        accel = sim.ego_accel[r].copy()
+        accel[0] = measured_accel
+        ego = (*(a[r, :, 0] for a in (sim.s, sim.d, sim.heading, sim.speed)), accel)
         agents = (sim.s[r, :, 1:], sim.d[r, :, 1:], sim.heading[r, :, 1:], vehicles.length[1:], vehicles.width[1:])
         return MotionInput(frame, now, sim.t, ego, float(vehicles.length[0]), float(vehicles.width[0]), agents,
                            float(vehicles.s[0]) + stop_distance)

@@ -56,6 +56,7 @@ class MotionInput:
 class MotionStats:
     outcomes: dict[str, int] = field(default_factory=lambda: {k: 0 for k in OUTCOMES})
     failures: dict[str, int] = field(default_factory=dict)  # reason → cycles
+    start_clipped: int = 0  # QP cycles whose start velocity or acceleration lay outside the dynamic bounds
     cycle_times: list[float] = field(default_factory=list)  # [s]
 
 
@@ -142,6 +143,8 @@ class MotionLayer:
         b = self.settings.bounds
         start_s = [start[0], np.clip(start[2], *b.s_speed), np.clip(start[4], *b.s_accel)]
         start_d = [start[1], np.clip(start[3], *b.d_speed), np.clip(start[5], *b.d_accel)]
+        # Outside its bounds the QP could not start at the ego's state: it starts at the nearest bound (counted).
+        self.stats.start_clipped += int(start_s[1:] != [start[2], start[4]] or start_d[1:] != [start[3], start[5]])
         end_s = [end[0], np.clip(end[2], *b.s_speed)]
         end_d = [end[1], np.clip(end[3], *b.d_speed)]
         ref = np.column_stack([inp.ego[0][:k_end + 1], inp.ego[1][:k_end + 1]])
