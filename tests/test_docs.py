@@ -54,16 +54,31 @@ def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypat
     run = tmp_path / "highway_dense" / "0"
     assert json.loads((run / "summary.json").read_text())["ego_controller"] == "custom"
     assert not (run / "planner.json").exists()  # the example has no summary()
+    # The run records its controller: its hash is not the scenario's own, so a batch never adopts it, and its
+    # scenario.toml says it alone does not reproduce the run (and still loads).
+    from sumo_rss.batch.orchestrator import _finished
+    from sumo_rss.batch.spec import Task
+    from sumo_rss.scenario import load_scenario
+
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["custom_controller"] == "builtins.RssFollower"
+    spec = namespace["spec"]
+    assert manifest["parameter_hash"] == Task(spec, "").parameter_hash("builtins.RssFollower") != \
+        Task(spec, "").parameter_hash()
+    assert not _finished(tmp_path, Task(spec, ""))
+    assert (run / "scenario.toml").read_text().startswith("# The ego was driven by the Python controller")
+    assert load_scenario(run / "scenario.toml").to_toml_data() == spec.to_toml_data()
 
 
 def test_the_documented_python_api_exists_with_the_documented_parameters():
-    """docs/api.md: every dotted name resolves, and the documented parameters are the functions' own."""
+    """README and docs: every dotted sumo_rss name resolves; api.md: the documented parameters are the functions'
+    own."""
     import importlib
     import inspect
 
-    text = (REPO / "docs" / "api.md").read_text(encoding="utf-8")
     resolved = {}
-    for dotted in sorted(set(re.findall(r"sumo_rss(?:\.\w+)+", text))):
+    every_doc = "\n".join(p.read_text(encoding="utf-8") for p in [REPO / "README.md", *(REPO / "docs").glob("*.md")])
+    for dotted in sorted(set(re.findall(r"sumo_rss(?:\.\w+)+", every_doc))):
         parts = dotted.split(".")
         for k in range(len(parts), 0, -1):  # the longest importable prefix, then attributes
             try:

@@ -24,7 +24,7 @@ from .. import __version__
 from ..errors import ScenarioError, SumoRssError
 from ..files import write_json
 from ..road.network import RoadNetwork
-from ..rss.auditor import Auditor, CollisionInput, ParamResolver
+from ..rss.auditor import Auditor, ParamResolver
 from ..rss.params import MODEL_VERSION
 from ..rss.responsibility import RESPONSIBLE_VALUES
 from ..scenario import ScenarioSpec
@@ -113,9 +113,15 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     ``controller`` drives the ego instead of the scenario's ``ego.controller`` (recorded as 'custom'); its
     ``summary()`` dict, if it has one, is written as planner.json.
     """
-    if controller is not None and spec.ego is None:
-        raise ScenarioError(spec.source, "ego", "expected an [ego] table: a controller needs an ego to drive",
-                            has_got=False)
+    custom = None
+    if controller is not None:
+        if spec.ego is None:
+            raise ScenarioError(spec.source, "ego", "expected an [ego] table: a controller needs an ego to drive",
+                                has_got=False)
+        if not callable(getattr(controller, "command", None)):
+            raise TypeError(f"controller: expected an object with a method command(snapshot, auditor) -> "
+                            f"TrajectoryState (sumo_rss.batch.runner.EgoController), got {controller!r}")
+        custom = f"{type(controller).__module__}.{type(controller).__qualname__}"
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
 
     task = Task(spec, variant)
@@ -124,11 +130,16 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
     os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared Ray folder
     try:
-        (work / "scenario.toml").write_bytes(tomli_w.dumps(spec.to_toml_data()).encode("utf-8"))
-        run_versions = versions()
-        write_json(work / MANIFEST_FILE, {"run_id": task.run_id, "scenario": spec.name, "variant": variant,
-                                          "seed": spec.seed, "parameter_hash": task.parameter_hash(),
-                                          "versions": run_versions})
+        scenario_text = tomli_w.dumps(spec.to_toml_data())
+        manifest = {"run_id": task.run_id, "scenario": spec.name, "variant": variant, "seed": spec.seed,
+                    "parameter_hash": task.parameter_hash(custom), "versions": versions()}
+        if custom is not None:
+            scenario_text = (f"# The ego was driven by the Python controller {custom} (run_one(controller=...)), "
+                             "not by ego.controller:\n# this file alone does not reproduce the run.\n"
+                             + scenario_text)
+            manifest["custom_controller"] = custom
+        (work / "scenario.toml").write_bytes(scenario_text.encode("utf-8"))
+        write_json(work / MANIFEST_FILE, manifest)
         started = time.perf_counter()
         network = RoadNetwork.from_file(spec.net_file)
         resolver = param_resolver(spec)
@@ -138,10 +149,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         ego_rows = []
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
-                seen = len(session.collisions)
                 snapshot = session.step()
-                auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
-                                           for c in session.collisions[seen:]])
+                auditor.observe(snapshot, session.new_collisions)
                 if session.ego_on_road:
                     k = snapshot.index_of(session.ego_id)
                     ego_rows.append((snapshot.time, snapshot.x[k], snapshot.y[k], snapshot.speed[k],
@@ -177,7 +186,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             ego_mean_speed_ms=float(sum(r[3] for r in ego_rows) / len(ego_rows)) if ego_rows else None,
             ego_id=session.ego_id,
             ego_controller="custom" if controller is not None else spec.ego.controller if spec.ego else None,
-            collision_events=[asdict(c) for c in session.collisions], versions=run_versions,
+            collision_events=[asdict(c) for c in session.collisions], versions=manifest["versions"],
             planner=planner)
         write_json(work / SUMMARY_FILE, asdict(summary))
         _replace_dir(work, final)

@@ -42,10 +42,13 @@ class Task:
         """``<scenario>[__<variant>]/<seed>``: the run's folder below the batch folder, and its key in CSVs."""
         return f"{self.spec.name}{'__' + self.variant if self.variant else ''}/{self.spec.seed}"
 
-    def parameter_hash(self) -> str:
+    def parameter_hash(self, custom_controller: str | None = None) -> str:
         """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing. The network
-        counts by its content, not its path: a moved or re-cloned checkout resumes its batches."""
+        counts by its content, not its path: a moved or re-cloned checkout resumes its batches. A run whose ego
+        a Python controller drove (``custom_controller``: its class) hashes differently from the scenario's own."""
         data = {**self.spec.to_toml_data(), "network": _file_digest(self.spec.net_file)}
+        if custom_controller is not None:
+            data["custom_controller"] = custom_controller
         text = json.dumps(data, sort_keys=True, default=str)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
