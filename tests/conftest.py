@@ -60,7 +60,7 @@ def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test", 
 
     from sumo_rss.batch.runner import param_resolver
     from sumo_rss.road.network import RoadNetwork
-    from sumo_rss.rss.auditor import Auditor, CollisionInput
+    from sumo_rss.rss.auditor import Auditor
     from sumo_rss.sim.session import Session
 
     auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), run_id)
@@ -68,8 +68,6 @@ def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test", 
         setup()
         while session.steps < round(seconds / spec.step_s):
             control(session.time)
-            seen = len(session.collisions)
             snapshot = session.step() if routes else replace(session.step(), route_edges=None)
-            auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
-                                       for c in session.collisions[seen:]])
+            auditor.observe(snapshot, session.new_collisions)
     return auditor.finish()

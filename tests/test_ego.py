@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
 
-from conftest import write_scenario
+from conftest import SCENARIOS, write_scenario
 from sumo_rss import SessionError, Trajectory, load_scenario
 from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
@@ -147,3 +148,47 @@ def test_a_placed_ego_that_stands_longer_than_the_teleport_time_is_not_teleporte
             speeds.append(float(snapshot.speed[snapshot.index_of("ego")]))
         assert session.teleports == 0
     assert max(speeds) == 0.0
+
+
+@pytest.mark.parametrize("command, says", [
+    ((0.0, -5.25, 0.0, 20.0, 0.0), "expected a sumo_rss.trajectory.TrajectoryState, got tuple"),
+    (TrajectoryState(float("nan"), -5.25, 0.0, 20.0, 0.0), "expected finite x, y, heading, accel and a speed"),
+    (TrajectoryState(50.0, -5.25, 0.0, -1.0, 0.0), "a speed >= 0 m/s"),  # -1 would hand the speed back to SUMO
+])
+def test_a_malformed_ego_command_is_refused_naming_the_time(valid_scenario, tmp_path, command, says):
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with Session(spec) as session:
+        while not session.ego_on_road:
+            session.step()
+        with pytest.raises(SessionError, match=f"the ego command at t = {session.time:.2f} s: .*{re.escape(says)}"):
+            session.place_ego(command)
+
+
+def test_a_controller_without_a_command_method_is_refused_before_the_run(valid_scenario, tmp_path):
+    from sumo_rss.batch.runner import run_one
+
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with pytest.raises(TypeError, match=r"controller: expected an object with a method command\(snapshot, auditor\)"):
+        run_one(spec, tmp_path / "out", controller=object())
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("summary.json"))
+
+
+def test_an_own_loop_passes_the_sessions_new_collisions_to_the_audit():
+    """docs/extending.md's own loop on highway_dense: the ego driven at 40 m/s into the car ahead in its lane;
+    each contact reaches the audit once (SUMO reports it every step it lasts) and closes the pair's episode."""
+    spec = load_scenario(SCENARIOS / "highway_dense.toml").with_overrides(duration_s=40.0)
+    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), signal_rule=spec.rss.signal_rule)
+    with Session(spec) as session:
+        while not session.finished:
+            if session.ego_on_road:
+                snap = session.snapshot
+                k = snap.index_of("ego")
+                heading, step = float(snap.heading[k]), 40.0 * spec.step_s
+                session.place_ego(TrajectoryState(float(snap.x[k]) + step * np.cos(heading),
+                                                  float(snap.y[k]) + step * np.sin(heading), heading, 40.0, 0.0))
+            auditor.observe(session.step(), session.new_collisions)
+    result = auditor.finish()
+    ego_hits = [c for c in session.collisions if "ego" in (c.collider, c.victim)]
+    assert ego_hits and len(result.collisions) == len(session.collisions)
+    closed = result.episodes[result.episodes.collision]
+    assert {(c.collider, c.victim) for c in ego_hits} <= set(zip(closed.collider, closed.victim))

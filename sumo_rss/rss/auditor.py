@@ -38,7 +38,8 @@ PAIR_STATE_COLUMNS = ["run_id", "episode_key", "time_s", "lon_gap_m", "lon_d_min
 
 @dataclass(frozen=True)
 class CollisionInput:
-    """A collision at the current step, as SUMO reports it."""
+    """A collision at the current step, as SUMO reports it (a session's ``CollisionEvent`` has these fields too and
+    may be passed as it is)."""
 
     time: float  # [s]
     collider: str

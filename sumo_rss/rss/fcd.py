@@ -25,7 +25,7 @@ from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, open_output, output_elements
-from .auditor import AuditResult, Auditor, CollisionInput, ParamResolver
+from .auditor import AuditResult, Auditor, ParamResolver
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane
 
@@ -360,10 +360,10 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
             absent.difference_update(snapshot.ids.tolist())
         if reports is not None:
             new = contacts.step(reports.take_until(snapshot.time))
-            auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind) for c in new])
+            auditor.observe(snapshot, new)
             continue
         found = overlap_contacts(snapshot, auditor.observe(snapshot))
-        auditor.record_collisions(CollisionInput(c.time, c.collider, c.victim, c.kind) for c in contacts.step(found))
+        auditor.record_collisions(contacts.step(found))
     if not steps:
         warnings.warn(f"{fcd}: no <timestep> in the file: nothing to audit", stacklevel=2)
     if reports is not None:

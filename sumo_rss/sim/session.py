@@ -6,6 +6,7 @@ also when the code using it raises (use it as a context manager).
 """
 from __future__ import annotations
 
+import math
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -102,6 +103,7 @@ class Session:
         self.write_fcd = spec.outputs.fcd if fcd is None else fcd
         self.ego_id = spec.ego.id if spec.ego is not None else None
         self.collisions: list[CollisionEvent] = []
+        self.new_collisions: list[CollisionEvent] = []  # the contacts that began in the last step
         self.teleports = 0
         self.vehicles_inserted = 0
         self.peak_vehicles = 0
@@ -223,7 +225,8 @@ class Session:
     def _record_collisions(self, time: float) -> None:
         reports = [CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType, c.colliderSpeed,
                                   c.victimSpeed, c.type, c.lane, c.pos) for c in libsumo.simulation.getCollisions()]
-        self.collisions.extend(self._contacts.step(reports))
+        self.new_collisions = self._contacts.step(reports)
+        self.collisions.extend(self.new_collisions)
 
     def _build_snapshot(self, time: float) -> WorldSnapshot:
         results = libsumo.vehicle.getAllSubscriptionResults()
@@ -309,6 +312,7 @@ class Session:
             raise SessionError(f"the ego {self.ego_id!r} is not on the road at t = {self.time:.2f} s")
         if self._ego_released:
             return
+        _check_command(state, self.time)
         if self._ego_arriving(state):
             ego_actuation.release(self.ego_id)
             self._ego_controlled, self._ego_released = False, True
@@ -327,3 +331,14 @@ class Session:
             return False
         remaining = libsumo.lane.getLength(str(snap.lane_id[k])) - float(snap.lane_pos[k])
         return remaining <= max(state.speed, float(snap.speed[k])) * self.spec.step_s
+
+
+def _check_command(state: TrajectoryState, time: float) -> None:
+    """Refuse an ego command SUMO would misread: a NaN position loses the ego, a negative speed hands it back."""
+    if not isinstance(state, TrajectoryState):
+        raise SessionError(f"the ego command at t = {time:.2f} s: expected a sumo_rss.trajectory.TrajectoryState, "
+                           f"got {type(state).__name__}")
+    values = (state.x, state.y, state.heading, state.speed, state.accel)
+    if not all(math.isfinite(float(v)) for v in values) or state.speed < 0.0:
+        raise SessionError(f"the ego command at t = {time:.2f} s: expected finite x, y, heading, accel and a speed "
+                           f">= 0 m/s, got {state}")
