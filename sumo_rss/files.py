@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 CSV_FLOAT_FORMAT = "%.6f"  # every CSV the project writes: 6 decimals, so the same run gives the same bytes
@@ -29,8 +30,14 @@ def write_text(path: Path, text: str) -> None:
 
 
 def write_json(path: Path, data: object) -> None:
-    """``data`` as indented JSON with sorted keys."""
-    write_text(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
+    """``data`` as indented JSON with sorted keys (numpy scalars and arrays as their Python values)."""
+    write_text(path, json.dumps(data, indent=2, sort_keys=True, default=_plain) + "\n")
+
+
+def _plain(value: object) -> object:
+    if isinstance(value, (np.generic, np.ndarray)):
+        return value.tolist()
+    raise TypeError(f"expected JSON data, got {type(value).__name__}: {value!r}")
 
 
 def write_csv(frame: pd.DataFrame, path: Path) -> None:

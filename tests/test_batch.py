@@ -446,3 +446,17 @@ def test_a_worker_whose_batch_died_while_it_started_exits_at_once():
         proc = subprocess.run([sys.executable, "-c", code, str(parent)], capture_output=True, text=True, cwd=REPO,
                               check=False)
         assert (proc.returncode, proc.stdout) == expected, proc.stderr
+
+
+def test_json_files_take_numpy_numbers(tmp_path):
+    """A controller's summary() with numpy numbers (planner.json) is written as plain JSON."""
+    import json
+
+    import numpy as np
+
+    from sumo_rss.files import write_json
+
+    write_json(tmp_path / "p.json", {"count": np.int64(3), "mean": np.float64(0.5), "values": np.arange(2)})
+    assert json.loads((tmp_path / "p.json").read_text()) == {"count": 3, "mean": 0.5, "values": [0, 1]}
+    with pytest.raises(TypeError, match="expected JSON data, got object"):
+        write_json(tmp_path / "q.json", {"x": object()})
