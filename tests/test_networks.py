@@ -99,3 +99,21 @@ def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_
                                         "intersection_priority: up to date", "intersection_tls: up to date"]
     assert proc.stderr.splitlines() == [f"sumo-rss: error: netconvert failed for {root / 'merge' / 'merge.netccfg'}: "
                                         "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]
+
+
+def test_frenet_takes_lane_ids_or_indices_and_names_unknown_lanes():
+    """hw0 runs along +x with its left border at y = 0 and 3.5 m lanes: lane 1's centre is y = −5.25 m."""
+    import numpy as np
+
+    from sumo_rss.road.network import RoadNetwork, UnknownLaneError
+
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    x, y = np.array([100.0, 200.0]), np.array([-5.25, -4.25])
+    by_id = net.frenet(np.array(["hw0_1", "hw0_1"]), x, y)
+    by_index = net.frenet(net.lane_indices(["hw0_1", "hw0_1"]), x, y)
+    for a, b in zip(by_id, by_index):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(by_id[1], [0.0, 1.0], atol=1e-9)
+    with pytest.raises(UnknownLaneError, match="hw9_0"):
+        net.frenet(np.array(["hw9_0"]), x[:1], y[:1])
+

@@ -149,7 +149,11 @@ class RoadNetwork:
 
     def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray,
                s_hint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(s, d, lane heading) of points in the frame of lanes ``lane`` (indices); see LaneShapes.project."""
+        """(s, d, lane heading) of points in the frame of lanes ``lane`` (indices, or lane ids such as 'hw0_1');
+        see LaneShapes.project. An edge is named by one of its lanes: d is measured from that lane's centre."""
+        lane = np.asarray(lane)
+        if lane.dtype.kind in "USO":
+            lane = self.lane_indices(lane)
         return self.shapes.project(lane, x, y, s_hint)
 
 
