@@ -460,3 +460,23 @@ def test_json_files_take_numpy_numbers(tmp_path):
     assert json.loads((tmp_path / "p.json").read_text()) == {"count": 3, "mean": 0.5, "values": [0, 1]}
     with pytest.raises(TypeError, match="expected JSON data, got object"):
         write_json(tmp_path / "q.json", {"x": object()})
+
+
+def test_report_keeps_numeric_looking_names_as_text_and_counts_whole_beside_a_failed_run(valid_scenario, tmp_path):
+    """A scenario named '007' stays '007' in every table (pandas read it as 7 from episodes.csv alone, splitting
+    its row in two); a failed run's empty cells do not turn the Runs table's counts into 200.000."""
+    valid_scenario["duration_s"] = 20.0
+    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 3000
+    write_scenario(tmp_path, valid_scenario, "007.toml")
+    valid_scenario["sumo"] = {"extra_args": ["--bogus-option", "1"]}
+    write_scenario(tmp_path, valid_scenario, "broken.toml")
+    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["007.toml", "broken.toml"]\nseeds = [0]\n')
+    out = tmp_path / "b"
+    rows = run_batch(load_batch(tmp_path / "batch.toml").tasks(), out, LocalExecutor(workers=1), progress=False)
+    assert rows.status.tolist() == ["ok", "failed"]
+    page = write_report(out).read_text()
+    episodes = read_batch_csv(out, "episodes")
+    assert set(episodes.scenario) == {"007"} and len(episodes) > 0
+    table = responsibility_table(episodes, ["007", "broken"])
+    assert table.index.tolist() == ["007", "broken"] and int(table.loc["007"].sum()) == len(episodes)
+    assert "<td>200</td>" in page and "200.000" not in page  # 20 s in 0.1 s steps

@@ -124,10 +124,14 @@ def _page(batch_dir: Path, summary: pd.DataFrame, responsibility: pd.DataFrame, 
 
 def _numbers_as_numbers(table: pd.DataFrame) -> pd.DataFrame:
     """``table`` with every column whose non-empty cells are all numbers read as numbers: a failed run's empty
-    cells made its column text, printed with all 6 decimals."""
+    cells made its column text, printed with all 6 decimals. Whole numbers as written (no '.', no exponent: counts)
+    stay whole (a float column would print 400 as 400.000)."""
     def column(values: pd.Series) -> pd.Series:
         if pd.api.types.is_numeric_dtype(values) or pd.api.types.is_bool_dtype(values):
             return values
+        written = values[values != ""].astype(str)
         numbers = pd.to_numeric(values.where(values != ""), errors="coerce")
-        return numbers if numbers.notna().sum() == (values != "").sum() else values
+        if numbers.notna().sum() != written.size:
+            return values
+        return numbers.astype("Int64") if written.str.fullmatch(r"-?\d+").all() else numbers
     return table.apply(column)

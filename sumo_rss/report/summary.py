@@ -8,15 +8,19 @@ import pandas as pd
 from ..sim.snapshot import EGO_CLASS
 
 RESPONSIBILITY_CATEGORIES = ["ego", "ego & background", "background", "none"]
+# Columns of names and ids, read as text whatever they look like (a scenario '007', vehicles '7', '1e3').
+TEXT_COLUMNS = ("run_id", "scenario", "variant", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b",
+                "vehicle_id", "vehicle_class", "conflict_area", "collider", "victim", "blamed", "error")
 
 
 def read_batch_csv(batch_dir: Path, name: str) -> pd.DataFrame:
     """A concatenated batch CSV (empty frame if the batch produced none). Empty cells stay empty strings (a junction
-    episode has no lateral margin), so such columns are read whole, not guessed chunk by chunk."""
+    episode has no lateral margin), so such columns are read whole, not guessed chunk by chunk; names and ids
+    (TEXT_COLUMNS) are text."""
     path = Path(batch_dir) / f"{name}.csv"
     if not path.is_file():
         return pd.DataFrame()
-    return pd.read_csv(path, keep_default_na=False, dtype={"episode_key": str, "variant": str}, low_memory=False)
+    return pd.read_csv(path, keep_default_na=False, dtype=dict.fromkeys(TEXT_COLUMNS, str), low_memory=False)
 
 
 def run_label(frame: pd.DataFrame) -> pd.Series:
