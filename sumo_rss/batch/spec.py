@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import ScenarioError
+from ..road.build import without_generator_header
 from ..rss.params import PRESETS
 from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario
 from ..scenario_rss import rss_inconsistency
@@ -44,7 +45,8 @@ class Task:
 
     def parameter_hash(self, custom_controller: str | None = None) -> str:
         """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing. The network
-        counts by its content, not its path: a moved or re-cloned checkout resumes its batches. A run whose ego
+        counts by its content, not its path or netconvert's build-date comment: a moved or re-cloned checkout, or
+        `sumo-rss nets build` of the same sources, resumes its batches. A run whose ego
         a Python controller drove (``custom_controller``: its class) hashes differently from the scenario's own."""
         data = {**self.spec.to_toml_data(), "network": _file_digest(self.spec.net_file)}
         if custom_controller is not None:
@@ -55,11 +57,13 @@ class Task:
 
 @functools.lru_cache(maxsize=64)
 def _cached_digest(path: Path, size: int, modified_ns: int) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    content = without_generator_header(path.read_bytes().decode("utf-8", errors="surrogateescape"))
+    return hashlib.sha256(content.encode("utf-8", errors="surrogateescape")).hexdigest()
 
 
 def _file_digest(path: Path) -> str:
-    """SHA-256 of a file's bytes (read again only when its size or modification time changed)."""
+    """SHA-256 of a network file's content without netconvert's leading comment (read again only when its size or
+    modification time changed)."""
     status = path.stat()
     return _cached_digest(path.resolve(), status.st_size, status.st_mtime_ns)
 
