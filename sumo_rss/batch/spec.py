@@ -46,8 +46,8 @@ class Task:
     def parameter_hash(self, custom_controller: str | None = None) -> str:
         """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing. The network
         counts by its content, not its path or netconvert's build-date comment: a moved or re-cloned checkout, or
-        `sumo-rss nets build` of the same sources, resumes its batches. A run whose ego
-        a Python controller drove (``custom_controller``: its class) hashes differently from the scenario's own."""
+        `sumo-rss nets build` of the same sources, resumes its batches. A run whose ego a Python controller drove
+        (``custom_controller``: its class) hashes differently from the scenario's own."""
         data = {**self.spec.to_toml_data(), "network": _file_digest(self.spec.net_file)}
         if custom_controller is not None:
             data["custom_controller"] = custom_controller
