@@ -162,3 +162,25 @@ def test_the_yield_timing_assumes_the_ego_crossing_as_it_drives():
     assert stop(110.0, Crossing()) == "" and stop(110.0, as_driven) == "yield"
     assert stop(150.0, Crossing()) == stop(150.0, as_driven) == ""
     assert stop(60.0, Crossing()) == stop(60.0, as_driven) == "yield"
+
+
+def test_the_yield_timing_counts_each_cars_own_conflict_area():
+    """docs/planner.md: the ego yields unless the car with priority reaches the conflict area at least 2 s after
+    the ego would have cleared *it*. The oncoming straight car's area ends 15.4 m along the ego's left turn; a car
+    waiting at red far back on W_in_1 (no priority) has an area ending later along the turn. It used to set the
+    clearing time for every car: the ego yielded to an oncoming car 135-145 m out that arrives after it has
+    cleared that car's own area."""
+    net, junctions = _model("intersection_tls")
+    phase = {"C": "GGgrrrGGgrrr"}
+    ego = ("ego", "S_in_1", 2.0, 0.0, ("S_in", "W_out"))
+    waiting = ("w", "W_in_1", 100.0, 0.0, ("W_in", "N_out"))
+    as_driven = Crossing(1.0, lambda start, length: 13.0 if start == 0.0 else 3.0)
+
+    def stop(cars) -> str:
+        snap = _snapshot(net, cars, phase)
+        return stop_line(snap, 0, net, junctions, RouteTable(net), ParamResolver("ad_rss").arrays(snap), None,
+                         as_driven).reason
+
+    for oncoming_m, reason in ((130.0, "yield"), (140.0, "")):
+        oncoming = ("n", "N_in_0", oncoming_m, 13.0, ("N_in", "S_out"))
+        assert stop([ego, oncoming]) == stop([ego, oncoming, waiting]) == reason
