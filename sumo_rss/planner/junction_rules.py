@@ -144,11 +144,12 @@ def stop_line(snapshot: WorldSnapshot, ego: int, network: RoadNetwork, junctions
     arriving = (f_pos < start) & ((f_v >= MIN_SPEED) | (f_pos >= 0.0))
     t_foe = np.where(inside_area, 0.0, (start - f_pos) / np.maximum(f_v, MIN_SPEED))
     ego_pos = float(pos[mine[0]])
-    clear = -ego_pos + float(np.max(junctions.area_end[own, fl])) + float(snapshot.length[ego])
-    # Per car, when the ego has cleared that car's own conflict area (a few distinct areas: one time each).
+    # Per car, when the ego has cleared that car's own conflict area (a few distinct areas: one time each); the
+    # whole crossing ends past the last of them.
     ends, area_of = np.unique(junctions.area_end[own, fl], return_inverse=True)
-    t_clear = np.array([crossing.time_to_cover(v, -ego_pos, -ego_pos + float(e) + float(snapshot.length[ego]))
-                        for e in ends])[area_of]
+    to_clear = -ego_pos + ends + float(snapshot.length[ego])  # [m] from the ego's front bumper
+    clear = float(to_clear[-1])
+    t_clear = np.array([crossing.time_to_cover(v, -ego_pos, float(c)) for c in to_clear])[area_of]
     if np.any(prioritised & (inside_area | (arriving & (t_foe < t_clear + YIELD_MARGIN)))):
         return StopLine(distance, "yield", beyond)
     # Who stands before the area while the ego crosses: who waits, and who is (still) in front of the ego on the
