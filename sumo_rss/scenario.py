@@ -33,6 +33,7 @@ MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer
 _NOT_IN_IDS = " \t\n\r|\\'\";,<>&"  # characters SUMO refuses in vehicle and vType ids
 _NOT_IN_NAMES = "/\\,;"  # a scenario's name is a folder of its runs, inside SUMO's file lists (split on , and ;)
 MAX_DURATION_S = 7 * 86400.0  # [s] the longest run a scenario may ask for
+MAX_VEH_PER_HOUR = 20000.0  # [veh/h] the densest flow a scenario (or a batch's demand_scale) may ask for
 
 
 def networks_root() -> Path:
@@ -404,7 +405,7 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
             check_route_permits(f, route, v.vclass, f"vType {v.id!r}", topology, depart_lane)
         flows.append(FlowSpec(
             id=_sumo_id(f, "id", f.string("id", f"flow{i}")), route=route,
-            veh_per_hour=f.number("veh_per_hour", min=0.0, max=20000.0, min_exclusive=True)
+            veh_per_hour=f.number("veh_per_hour", min=0.0, max=MAX_VEH_PER_HOUR, min_exclusive=True)
             if kind == "veh_per_hour" else None,
             probability=f.number("probability", min=0.0, max=1.0, min_exclusive=True)
             if kind == "probability" else None,

@@ -159,6 +159,34 @@ def test_a_demand_scale_beyond_what_a_probability_flow_can_insert_is_refused(two
         load_batch(two_scenarios / "scaled.toml").tasks()
 
 
+def test_a_demand_scale_beyond_the_densest_flow_a_scenario_may_ask_for_is_refused(two_scenarios):
+    """The same 20000 veh/h bound as in a scenario file: 3000 x 10 was let through."""
+    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["busy.toml"]\n[batch.grid]\n'
+                                               'demand_scale = [6.0]\n')
+    assert load_batch(two_scenarios / "scaled.toml").tasks()[0].spec.demand.flows[0].veh_per_hour == 18000
+    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["busy.toml"]\n[batch.grid]\n'
+                                               'demand_scale = [10.0]\n')
+    with pytest.raises(ScenarioError, match=r"busy\.toml: demand\.flows\[0\]\.veh_per_hour: demand_scale 10 makes it "
+                                            r"30000 veh/h, above the at most 20000 veh/h of a flow"):
+        load_batch(two_scenarios / "scaled.toml").tasks()
+
+
+def test_a_controller_sweep_runs_a_scenario_without_an_ego_once_per_other_variant(two_scenarios, valid_scenario):
+    """It made one identical run per controller (same traffic, same seed) under different names."""
+    del valid_scenario["ego"]
+    write_scenario(two_scenarios, valid_scenario, "traffic.toml")
+    (two_scenarios / "sweep.toml").write_text('[batch]\nscenarios = ["traffic.toml", "light.toml"]\n'
+                                              '[batch.grid]\nrss_preset = ["ad_rss", "krauss"]\n'
+                                              'controller = ["sumo", "epsilon"]\n')
+    assert [t.run_id for t in load_batch(two_scenarios / "sweep.toml").tasks()] == [
+        "traffic__rss_preset=ad_rss/0", "traffic__rss_preset=krauss/0",
+        "light__rss_preset=ad_rss+controller=sumo/0", "light__rss_preset=ad_rss+controller=epsilon/0",
+        "light__rss_preset=krauss+controller=sumo/0", "light__rss_preset=krauss+controller=epsilon/0"]
+    (two_scenarios / "only.toml").write_text('[batch]\nscenarios = ["traffic.toml"]\n[batch.grid]\n'
+                                             'controller = ["sumo", "epsilon", "mpdm"]\n')
+    assert [t.run_id for t in load_batch(two_scenarios / "only.toml").tasks()] == ["traffic/0"]
+
+
 def test_a_huge_seed_range_is_refused_before_it_is_built():
     with pytest.raises(ValueError, match=r"\(at most 100000 seeds\), got '0:99999999999'"):
         parse_seeds("0:99999999999")

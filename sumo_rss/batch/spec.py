@@ -23,7 +23,7 @@ from pathlib import Path
 from ..errors import ScenarioError
 from ..road.build import without_generator_header
 from ..rss.params import PRESETS
-from ..scenario import CONTROLLERS, MAX_SEED, ScenarioSpec, load_scenario
+from ..scenario import CONTROLLERS, MAX_SEED, MAX_VEH_PER_HOUR, ScenarioSpec, load_scenario
 from ..scenario_rss import rss_inconsistency
 from ..validation import TableReader, read_toml
 
@@ -80,7 +80,16 @@ class BatchSpec:
         variants = [dict(zip(self.grid, values)) for values in itertools.product(*self.grid.values())] \
             if self.grid else [{}]
         return [Task(apply_variant(spec, v).with_overrides(seed=seed), variant_name(v))
-                for spec in self.scenarios for v in variants for seed in self.seeds]
+                for spec in self.scenarios for v in _distinct_variants(spec, variants) for seed in self.seeds]
+
+
+def _distinct_variants(spec: ScenarioSpec, variants: list[dict]) -> list[dict]:
+    """The variants that change this scenario: without an ego, a controller sweep has nothing to sweep, so its
+    variants lose the controller and collapse into one run each (not one identical run per controller)."""
+    if spec.ego is not None:
+        return variants
+    kept = [{k: v for k, v in values.items() if k != "controller"} for values in variants]
+    return [dict(items) for items in dict.fromkeys(tuple(values.items()) for values in kept)]
 
 
 def variant_name(values: dict) -> str:
@@ -97,14 +106,17 @@ def apply_variant(spec: ScenarioSpec, values: dict) -> ScenarioSpec:
             raise ScenarioError(spec.source, f"rss.{problem[0]}", problem[1], has_got=False)
     if "demand_scale" in values:
         scale = values["demand_scale"]
-        over = next((i for i, f in enumerate(spec.demand.flows)
-                     if f.probability is not None and f.probability * scale > 1.0), None)
-        if over is not None:  # SUMO draws at most one vehicle per second from a probability flow
-            flow = spec.demand.flows[over]
-            raise ScenarioError(spec.source, f"demand.flows[{over}].probability",
-                                f"demand_scale {scale:g} makes it {flow.probability * scale:g} per second, above the "
-                                "at most 1 of a probability flow (give the flow as veh_per_hour to scale it further)",
-                                has_got=False)
+        for i, flow in enumerate(spec.demand.flows):
+            if flow.probability is not None and flow.probability * scale > 1.0:
+                # SUMO draws at most one vehicle per second from a probability flow
+                raise ScenarioError(spec.source, f"demand.flows[{i}].probability",
+                                    f"demand_scale {scale:g} makes it {flow.probability * scale:g} per second, above "
+                                    "the at most 1 of a probability flow (give the flow as veh_per_hour to scale it "
+                                    "further)", has_got=False)
+            if flow.veh_per_hour is not None and flow.veh_per_hour * scale > MAX_VEH_PER_HOUR:
+                raise ScenarioError(spec.source, f"demand.flows[{i}].veh_per_hour",
+                                    f"demand_scale {scale:g} makes it {flow.veh_per_hour * scale:g} veh/h, above the "
+                                    f"at most {MAX_VEH_PER_HOUR:g} veh/h of a flow", has_got=False)
         flows = tuple(replace(f, veh_per_hour=f.veh_per_hour * scale if f.veh_per_hour is not None else None,
                               probability=f.probability * scale if f.probability is not None else None)
                       for f in spec.demand.flows)
