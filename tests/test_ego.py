@@ -54,6 +54,34 @@ def test_constant_speed_lane_keeping_trajectory_is_followed(valid_scenario, tmp_
     assert set(lane) == {"hw0_1"}
 
 
+def test_a_placed_ego_just_past_a_lane_end_has_no_lateral_speed(valid_scenario, tmp_path):
+    """SUMO keeps a bumper placed a few mm past a lane's end on that lane and reports the overshoot as its
+    lateral offset: 8.6 mm gave a phantom 0.086 m/s (twice: carried onto the next edge) that the audit judged."""
+    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 600
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    lane_end = 899.87  # [m] x of the end of hw0_1
+    with Session(spec) as session:
+        while not session.ego_on_road:
+            session.step()
+        t_hit = session.time + 2.0
+        times = session.time + np.arange(0.0, 4.0, session.spec.step_s)
+        plan = Trajectory(times, lane_end + 0.0086 + SPEED * (times - t_hit), np.full_like(times, LANE_Y),
+                          np.zeros_like(times), np.full_like(times, SPEED), np.zeros_like(times))
+        rows = []
+        for _ in range(30):
+            session.drive_ego(plan)
+            snap = session.step()
+            k = snap.index_of("ego")
+            rows.append((snap.time, snap.lane_id[k], snap.lane_pos[k], snap.lat_speed[k]))
+    at_end = [r for r in rows if abs(r[0] - t_hit) < 1e-6]
+    assert at_end and at_end[0][1] == "hw0_1" and at_end[0][2] == pytest.approx(lane_end, abs=2e-3)  # the SUMO case
+    # Up to the step onto hw1, which carries the last speed over; from then on hw1 bends away from the straight
+    # plan (its lateral speed there is real).
+    straight = [r for r in rows if r[0] <= t_hit + 0.1 + 1e-6]
+    assert straight[-1][1] == "hw1_1"
+    np.testing.assert_allclose([r[3] for r in straight], 0.0, atol=1e-6)
+
+
 def test_drive_ego_before_the_ego_departs_is_refused(valid_scenario, tmp_path):
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))  # the ego departs at t = 1 s
     plan = Trajectory(np.array([0.0, 1.0]), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2))

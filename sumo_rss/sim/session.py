@@ -35,6 +35,8 @@ _VARS = (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VA
          tc.VAR_ROAD_ID, tc.VAR_LANE_INDEX, tc.VAR_LANEPOSITION, tc.VAR_LANEPOSITION_LAT, tc.VAR_SIGNALS,
          tc.VAR_ROUTE_INDEX)
 
+LANE_END_TOLERANCE = 0.01  # [m] a lane position this close to a lane's end is at its end (SUMO keeps 1 mm off it)
+
 _active: Session | None = None
 
 
@@ -113,7 +115,7 @@ class Session:
         self._contacts = ContactTracker()
         self._ego_controlled = False
         self._ego_released = False  # handed back to SUMO at the end of its route, to arrive
-        self._lane_offsets: dict[str, float] = {}
+        self._lane_geometry: dict[str, tuple[float, float, tuple]] = {}  # lane → (offset [m], length [m], shape)
         self._ego_lateral: tuple[str, float, float] | None = None  # (edge, lateral position, speed) last step
         self._ego_speed: float | None = None  # [m/s] at the last step
         self._ego_derived: dict[float, tuple[float, float]] = {}  # time → (accel, lateral speed) of a placed ego
@@ -274,12 +276,22 @@ class Session:
         the change of its lateral position across its edge (lane offset + posLat) over the step; carried over
         the step on which it enters a new edge."""
         lane, edge = row[tc.VAR_LANE_ID], row[tc.VAR_ROAD_ID]
-        offset = self._lane_offsets.get(lane)
-        if offset is None:
+        geometry = self._lane_geometry.get(lane)
+        if geometry is None:
             widths = [libsumo.lane.getWidth(f"{edge}_{k}") for k in range(libsumo.edge.getLaneNumber(edge))]
             index = row[tc.VAR_LANE_INDEX]
-            offset = self._lane_offsets[lane] = sum(widths[:index]) + 0.5 * widths[index]
-        edge_lat = offset + row[tc.VAR_LANEPOSITION_LAT]
+            geometry = self._lane_geometry[lane] = (sum(widths[:index]) + 0.5 * widths[index],
+                                                    libsumo.lane.getLength(lane), tuple(libsumo.lane.getShape(lane)))
+        offset, length, shape = geometry
+        lat = row[tc.VAR_LANEPOSITION_LAT]
+        pos = row[tc.VAR_LANEPOSITION]
+        if pos >= length - LANE_END_TOLERANCE or pos <= LANE_END_TOLERANCE:
+            # A bumper placed just past either end of the lane is kept on it, with the overshoot reported as its
+            # lateral offset (8.6 mm past hw1's end: posLat -0.0086): the offset from the end segment's line.
+            (ax, ay), (bx, by) = shape[-2:] if pos > LANE_END_TOLERANCE else shape[:2]
+            x, y = row[tc.VAR_POSITION]
+            lat = ((bx - ax) * (y - ay) - (by - ay) * (x - ax)) / math.hypot(bx - ax, by - ay)
+        edge_lat = offset + lat
         previous = self._ego_lateral
         speed = (edge_lat - previous[1]) / self.spec.step_s if previous and previous[0] == edge else \
             (previous[2] if previous else 0.0)
