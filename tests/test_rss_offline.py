@@ -472,6 +472,49 @@ def test_instantaneous_lane_changes_are_named_once(dense_run, tmp_path):
         pd.testing.assert_frame_equal(getattr(audits[0], name), getattr(audits[1], name))
 
 
+@pytest.mark.parametrize("step, lane_changes", [("0.1", ["--lanechange.duration", "3"]), ("1", [])])
+def test_lateral_speeds_from_sumos_rounded_positions_are_sumos_own(dense_run, tmp_path, step, lane_changes):
+    """Without speedLat the lateral speed comes from position differences. SUMO writes positions with 2 decimals by
+    default: on the curved hw1 their rounding read as up to ±0.12 m/s of lateral speed for cars keeping their lane
+    (974 violations where the file with speedLat gave 178). At SUMO's default 1 s step a lane changed in one step
+    moved 3.5 m/s sideways, below the jump speed, and was judged as a lateral movement."""
+    network = RoadNetwork.from_file(HIGHWAY)
+    vehicles = read_vehicle_info(dense_run / "routes.rou.xml", HIGHWAY)
+    files = [tmp_path / "derived.xml", tmp_path / "sumo.xml"]
+    for out, attributes in zip(files, ("x,y,angle,type,speed,pos,lane", "x,y,angle,type,speed,pos,lane,speedLat")):
+        subprocess.run([str(sumo_tool("sumo")), "--net-file", str(HIGHWAY), "--route-files",
+                        str(dense_run / "routes.rou.xml"), "--step-length", step, *lane_changes, "--end", "100",
+                        "--no-step-log", "true", "--no-warnings", "true", "--fcd-output", str(out),
+                        "--fcd-output.attributes", attributes], check=True, capture_output=True)
+    with pytest.warns(UserWarning, match=r"derived\.xml: positions are written with 2 decimals: a car's lateral "
+                                         r"movement of up to 0\.0141 m in a step \(its rounding\) is read as none"):
+        pairs = list(zip(FcdReader(files[0], network, vehicles), FcdReader(files[1], network, vehicles),
+                         strict=True))
+    derived, sumo = (np.concatenate([p[k].lat_speed for p in pairs]) for k in (0, 1))
+    moving = sumo != 0.0
+    assert moving.sum() > 100 if lane_changes else not moving.any()
+    np.testing.assert_array_equal(derived[~moving], 0.0)
+    # A moving car's lateral movement over the step, within the rounding of the positions (√2 x 0.005 m per end).
+    assert np.abs(derived[moving] - sumo[moving]).max(initial=0.0) <= 0.0142 / float(step)
+
+
+def test_a_car_moving_sideways_onto_another_edge_keeps_its_lateral_speed(tmp_path):
+    """Without speedLat, a lateral movement is measured within an edge; a car entering the next edge in the middle
+    of a lane change read as not moving sideways there (0 m/s), which moved the start of its episodes."""
+    steps = [(0.0, "hw0_1", 898.0, 0.0), (0.1, "hw0_1", 898.8, 0.1), (0.2, "hw0_1", 899.6, 0.2),
+             (0.3, "hw1_1", 0.5, 0.3), (0.4, "hw1_1", 1.3, 0.4)]
+    fcd = tmp_path / "f.xml"
+    fcd.write_text("<fcd-export>" + "".join(
+        f'<timestep time="{t:.2f}">' + _fcd_vehicle("a", 0.0, lane=lane, pos=f"{pos:.6f}", posLat=f"{lat:.6f}",
+                                                   x=f"{pos if lane == 'hw0_1' else 900.17 + pos:.6f}",
+                                                   y=f"{-5.25 + lat:.6f}", speed="8.000000") + "</timestep>"
+        for t, lane, pos, lat in steps) + "</fcd-export>")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*vType car is not defined")
+        speeds = [float(s.lat_speed[0]) for s in FcdReader(fcd, RoadNetwork.from_file(HIGHWAY))]
+    np.testing.assert_allclose(speeds, [0.0, 1.0, 1.0, 1.0, 1.0], atol=1e-9)
+
+
 def _crash_with_sumo_defaults(folder) -> tuple:
     """A follower accelerating into a braking leader, run by SUMO with its default collision action (teleport:
     the collider is moved on to the next edge in the step of the collision); returns (fcd, collisions, routes)."""
@@ -606,6 +649,7 @@ def test_an_ego_id_that_is_not_in_the_fcd_is_named(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)
         warnings.filterwarnings("ignore", ".*vType car is not defined")
+        warnings.filterwarnings("ignore", ".*positions are written with 1 decimals")
         audit_fcd(fcd, network, ParamResolver(), ego_ids=("a",))
 
 

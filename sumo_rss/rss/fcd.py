@@ -30,6 +30,8 @@ from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane
 
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
+CENTRED = 0.05  # [m] a car this close to its lane's centre line at two steps, in another lane, jumped between them
+FINE_DECIMALS = 6  # positions written with this many decimals (sumo --precision 6) give exact lateral speeds
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
 STEP_TIME_TOLERANCE = 1e-6  # [s] a report at a step's time (both written with SUMO's few decimals) belongs to it
 
@@ -173,7 +175,9 @@ class FcdReader:
         self.network = network
         self.vehicles = vehicles or VehicleInfo()
         self.ego_ids = set(ego_ids)
-        self._prev: dict[str, tuple[float, int, float]] = {}  # id → (speed, edge, edge-frame lateral position)
+        # id → (speed [m/s], edge, lane, lateral position in the lane and across the edge [m], lateral speed [m/s])
+        self._prev: dict[str, tuple[float, int, int, float, float, float]] = {}
+        self._resolution: float | None = None  # [m] of a lateral position difference written with few decimals
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
@@ -226,6 +230,20 @@ class FcdReader:
             s, _, lane_heading = self.network.frenet(lane[k], cx, cy)
             against[k] = against_lane(self.network, lane[k], s, lane_heading, heading[k], length[k])
         return against
+
+    def _lateral_resolution(self, rows: list[dict[str, str]], from_pos_lat: bool) -> float:
+        """[m] the largest error of a lateral movement measured from positions as the file writes them (0 for
+        FINE_DECIMALS or more; SUMO's --precision applies to x, y and posLat alike); warns once when it is coarse.
+        posLat is rounded itself, an offset worked out from x and y by up to √2 of the rounding."""
+        decimals = max(_decimals(r.get("x", "")) for r in rows[:100])
+        if decimals >= FINE_DECIMALS:
+            return 0.0
+        resolution = 10.0 ** -decimals * (1.0 if from_pos_lat else math.sqrt(2.0))
+        warnings.warn(f"{self.path}: positions are written with {decimals} decimals: a car's lateral movement of up to "
+                      f"{resolution:.3g} m in a step (its rounding) is read as none and accelerations from speed "
+                      f"differences are rounded too; write the FCD with sumo --precision {FINE_DECIMALS} (or with "
+                      "speedLat and acceleration) for exact values", stacklevel=3)
+        return resolution
 
     def _warn_lane_jumps(self, ids: np.ndarray, lat_moved: np.ndarray, jumped: np.ndarray, dt: float,
                          time: float) -> None:
@@ -290,6 +308,8 @@ class FcdReader:
             return _numbers(rows, name, where) if rows and all(name in r for r in rows) else None
 
         lane_pos, lat_pos = optional("pos"), optional("posLat")
+        if self._resolution is None and rows and not all("speedLat" in r for r in rows):
+            self._resolution = self._lateral_resolution(rows, lat_pos is not None)
         if lane_pos is None or lat_pos is None:  # SUMO's pos and posLat are those of the front-bumper centre
             s_f, d_f, _ = self.network.frenet(lane, x, y)
             # SUMO measures pos along the lane's nominal length, which may differ from its shape's length.
@@ -306,19 +326,29 @@ class FcdReader:
         seen = np.array([p is not None for p in prev], dtype=bool)
         prev_speed = np.array([p[0] if p else 0.0 for p in prev])
         same_edge = seen & (np.array([p[1] if p else -1 for p in prev]) == edge)
-        lat_moved = np.where(same_edge, edge_lat - np.array([p[2] if p else 0.0 for p in prev]), 0.0)  # [m]
-        # A car that moves sideways faster than any car can changed its lane in one step (SUMO's default).
-        jumped = np.abs(lat_moved) > JUMP_SPEED * dt if dt else np.zeros(len(ids), dtype=bool)
+        lat_moved = np.where(same_edge, edge_lat - np.array([p[4] if p else 0.0 for p in prev]), 0.0)  # [m]
+        # A car that moves sideways faster than any car can, or from one lane's centre line to another's, changed
+        # its lane in one step (SUMO's default; at a 1 s step a lane width is only 3.5 m/s).
+        centred = same_edge & (np.abs(lat_pos) <= CENTRED) & (np.abs([p[3] if p else 1.0 for p in prev]) <= CENTRED)
+        jumped = (np.abs(lat_moved) > JUMP_SPEED * dt) | (centred & (np.array([p[2] if p else -1 for p in prev])
+                                                                      != lane)) if dt else np.zeros(len(ids), bool)
         if jumped.any():
             self._warn_lane_jumps(ids, lat_moved, jumped, dt, time)
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
         if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
-            lat_speed = np.where(jumped, 0.0, lat_moved / dt) if dt else np.zeros(len(ids))
+            # A movement within the positions' rounding is none; a car entering a new edge keeps its last speed.
+            moved = np.where(np.abs(lat_moved) > (self._resolution or 0.0), lat_moved, 0.0)
+            carried = np.array([p[5] if p else 0.0 for p in prev])
+            across = np.where(jumped, 0.0, np.where(same_edge | ~seen, moved / dt, carried)) if dt else \
+                np.zeros(len(ids))
             # SUMO's speedLat is the car's own (+ = left of its travel); a car overtaking through the oncoming lane
             # has its posLat in that lane's frame, so its movement there is the other way round.
-            lat_speed = np.where(self._against_lane(lane, x, y, heading, length), -lat_speed, lat_speed)
-        self._prev = {v: (s, int(e), lt) for v, s, e, lt in zip(ids, speed, edge, edge_lat)}
+            lat_speed = np.where(self._against_lane(lane, x, y, heading, length), -across, across)
+        else:
+            across = np.zeros(len(ids))  # not needed: SUMO wrote the lateral speeds
+        self._prev = {v: (s, int(e), int(ln), lp, lt, ls)
+                      for v, s, e, ln, lp, lt, ls in zip(ids, speed, edge, lane, lat_pos, edge_lat, across)}
         self._prev_time = time
         is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)
         routes = tuple(self.vehicles.route_of(v) or () for v in ids)
@@ -416,6 +446,13 @@ def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool
                        "angle, speed, lane)")
     raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r}: {name}: expected "
                    f"{'an integer' if integer else 'a finite number'}, got {bad[name]!r}")
+
+
+def _decimals(text: str) -> int:
+    """Digits after the decimal point of a number as written (FINE_DECIMALS for an exponent form)."""
+    if "e" in text or "E" in text:
+        return FINE_DECIMALS
+    return len(text) - text.index(".") - 1 if "." in text else 0
 
 
 def _is_number(text: str | None, kind: type) -> bool:
