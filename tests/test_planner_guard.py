@@ -145,3 +145,73 @@ def test_emergency_braking_up_to_b_max_where_b_min_would_hit_the_car_ahead(frame
     # A leader braking at 2 m/s²: b_min is enough, the plan stands.
     mild = WorldSnapshot(**{**vars(both), "accel": np.array([0.0, -2.0])})
     assert guard.apply(mild, 0, frame, TrajectoryState(302.5, -5.25, 0.0, 25.0, 0.0), nothing).accel == 0.0
+
+
+def _with_car(ego: WorldSnapshot, **car) -> WorldSnapshot:
+    """``ego`` and one more car (given fields; the rest as a car in lane hw0_1 driving along +x)."""
+    row = {"ids": "car", "x": 350.0, "y": -5.25, "heading": 0.0, "speed": 20.0, "accel": 0.0, "lat_speed": 0.0,
+           "length": 4.5, "width": 1.8, "lane_id": "hw0_1", "edge_id": "hw0", "lane_index": 1, "lane_pos": 350.0,
+           "lat_pos": 0.0, "vclass": "background", "vtype": "car", "signals": 0, "route_index": 0, **car}
+    return WorldSnapshot(**{**vars(ego), **{k: np.concatenate([getattr(ego, k), np.array([v])])
+                                            for k, v in row.items()}})
+
+
+def _nothing_owed() -> OwedResponses:
+    return OwedResponses(*(np.zeros(0, dtype=a.dtype) for a in vars(_owing_brake(0.0)).values()))
+
+
+def test_braking_owed_as_the_rear_car_and_limited_as_the_front_car_meets_both_duties(frame):
+    """krauss: b_min = b_max = 4.5 m/s² (the vType's decel). Owing braking to one car and no harder than b_max to
+    another, the guard kept 0.1 inside b_max (−4.4 m/s²) and so broke the braking duty by 0.1, twice the auditor's
+    tolerance; −4.5 meets both. With ad_rss (4 and 8 m/s²) both margins fit: −4.1."""
+    owed = OwedResponses(np.array([15.0, 15.0]), np.array([True, False]), np.zeros(2, bool), np.array([False, True]),
+                         np.zeros(2, bool), np.zeros(2, bool), np.zeros(2), np.array(["a", "b"], object),
+                         np.ones(2, bool), np.zeros(2, bool))
+    planned = TrajectoryState(300.0 + 2.0 * DT, -5.25, 0.0, 20.0, 0.0)
+    for preset, accel in (("krauss", -4.5), ("ad_rss", -4.1)):
+        guard = ProperResponseGuard(ParamResolver(preset), DT)
+        assert guard.apply(_ego_alone(20.0), 0, frame, planned, owed).accel == pytest.approx(accel)
+        assert guard.counts.lon_owed == 1
+
+
+def test_a_plan_braking_exactly_as_owed_is_not_counted_as_an_intervention(frame):
+    """The guard keeps 0.1 m/s² inside b_min; a plan braking at b_min itself (the planner's backup) complies with
+    the auditor (tolerance 0.05) and was counted as corrected at every step."""
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    done = guard.apply(_ego_alone(20.0), 0, frame, TrajectoryState(301.98, -5.25, 0.0, 19.6, -4.0), _owing_brake(15.0))
+    assert done.accel == pytest.approx(-4.1) and guard.counts.lon_owed == 0
+
+
+def test_the_speed_cap_behind_a_car_is_safe_at_the_next_step_not_only_now(frame):
+    """ad_rss, a car 60 m ahead at 15 m/s, the ego at 17 m/s planning to speed up. The cap was the RSS-safe speed
+    for the gap at t; the gap shrinks over the step, so at t + dt the ego stood just inside the RSS distance and
+    owed braking (49 of 63 such episodes of an MPDM run began right after a capped step)."""
+    from sumo_rss.rss import formulas
+
+    ego = _ego_alone(17.0)
+    both = _with_car(ego, x=300.0 + 60.0 + 4.5, speed=15.0)
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    done = guard.apply(both, 0, frame, TrajectoryState(301.8, -5.25, 0.0, 18.0, 10.0), _nothing_owed())
+    p = ParamResolver("ad_rss").arrays(both)
+    gap_next = 60.0 - (0.5 * (17.0 + done.speed) - 15.0) * DT
+    d_min = formulas.lon_safe_distance_same_dir(np.array([done.speed]), np.array([15.0]), p.take(np.array([0])),
+                                                p.take(np.array([1])))
+    assert guard.counts.lon_predictive == 1 and 17.0 < done.speed < 18.0
+    assert gap_next == pytest.approx(float(d_min[0]), abs=2e-3)  # on the RSS distance at t + dt, not inside it
+    assert formulas.is_safe_distance(np.array([gap_next + 1.1e-3]), d_min)[0]
+
+
+@pytest.mark.parametrize("other_lateral_speed, blocked", [(-1.0, False), (0.0, True)])
+def test_a_move_towards_a_car_that_moves_away_faster_is_not_blocked(frame, other_lateral_speed, blocked):
+    """ad_rss, a car right beside the ego on its left (longitudinally unsafe), 1.0 m between their sides; the plan
+    moves the ego towards it at 0.5 m/s. The guard took the other car's lateral speed as 0 for the next step, so a
+    car moving away at 1 m/s (``other_lateral_speed`` −1, towards the ego +) looked still: the move was set to 0.
+    With its speed kept, d_min next = ego 0.906 + other −0.9 + μ 0.1 = 0.106 m against a gap of 1.05 m: safe.
+    Towards a car that keeps its lateral position: d_min 1.131 m against 0.95 m, blocked."""
+    # The car's centre 1.0 + 1.8 m to the left of the ego's; its lateral speed + = left, i.e. away from the ego.
+    both = _with_car(_ego_alone(20.0), x=300.0, y=-5.25 + 2.8, lane_id="hw0_2", lane_index=2, lat_pos=-0.7,
+                     lat_speed=-other_lateral_speed)
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    done = guard.apply(both, 0, frame, TrajectoryState(302.0, -5.25 + 0.5 * DT, 0.0, 20.0, 0.0), _nothing_owed())
+    assert (done.y + 5.25) / DT == pytest.approx(0.0 if blocked else 0.5, abs=1e-6)
+    assert guard.counts.lat_predictive == int(blocked)

@@ -14,7 +14,7 @@ Before the planned state for the next step is sent to SUMO it is restricted by
   would be hit unless the ego brakes harder than b_min, the ego brakes as hard as that needs, up to its b_max
   (a car that cut in close and then braked hard: the planner, within its comfort limits, brakes at most 5 m/s²
   and ramps up to it).
-Every restriction that changes the command is counted. Units: m, s, m/s, m/s².
+Every restriction that changes the command beyond the guard's own margins is counted. Units: m, s, m/s, m/s².
 """
 from __future__ import annotations
 
@@ -34,6 +34,7 @@ STOPPED = 0.05  # [m/s]
 COUNT_TOLERANCE = 1e-3  # [m/s] smaller lateral corrections are made but not counted as interventions
 NEIGHBOURHOOD = 150.0  # [m] other cars farther than this are ignored
 EMERGENCY_GAP = 1.0  # [m] emergency braking stops the ego this far behind the car ahead
+PREDICTION_ITERATIONS = 3  # fixed-point steps for the speed that is RSS-safe at the next step (converge ~10x each)
 
 
 @dataclass
@@ -124,9 +125,12 @@ class ProperResponseGuard:
             upper = min(upper, 0.0)
         if np.any(owed.front_limited):
             lower = -float(p_e.lon_brake_max[0]) + ACCEL_MARGIN
-        limited = float(np.clip(accel, lower, max(upper, lower)))
+        if upper < lower:  # braking owed as the rear car, b_max as the front car, closer than two margins
+            upper = lower = 0.5 * (upper + lower)  # between b_min and b_max: both duties met
+        limited = float(np.clip(accel, lower, upper))
         if limited != accel:
-            c.lon_owed += 1
+            # Counted where the plan itself broke the duty, not where only the guard's margin moved it.
+            c.lon_owed += int(abs(limited - accel) > ACCEL_MARGIN + 1e-9)
             accel = limited
 
         # 2. No acceleration while a car ahead in the ego's path is closer than the RSS distance.
@@ -138,7 +142,14 @@ class ProperResponseGuard:
         in_path = (ds > 0.0) & ~formulas.is_safe_distance(lat_gap, lat_min_now)
         gap_ahead = ds[in_path] - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]][in_path])  # bumpers
         if accel > 0.0 and np.any(in_path):
-            v_up = formulas.max_safe_speed_behind(gap_ahead, v_o[in_path], p_e, p_o.take(np.flatnonzero(in_path)))
+            # Safe at the next step: the gap then, closed at the mean of the ego's speeds against the other's.
+            p_path = p_o.take(np.flatnonzero(in_path))
+            # The iterates alternate around that speed: the lesser of the last two is on the safe side of it.
+            v_up = previous = formulas.max_safe_speed_behind(gap_ahead, v_o[in_path], p_e, p_path)
+            for _ in range(PREDICTION_ITERATIONS):
+                gap_next = np.maximum(gap_ahead - (0.5 * (v0 + np.maximum(v_up, 0.0)) - v_o[in_path]) * dt, 0.0)
+                previous, v_up = v_up, formulas.max_safe_speed_behind(gap_next, v_o[in_path], p_e, p_path)
+            v_up = np.minimum(v_up, previous)
             # A car going its way that the ego owes no longitudinal braking (it cut in): the ego may keep up with
             # it, not close in.
             cut_in = np.isin(snapshot.ids[near[others]][in_path], list(owed.without_lon_duty()))
@@ -191,18 +202,21 @@ class ProperResponseGuard:
                     formulas.lateral_reach(np.where(other_left, u_ego, -u_ego), p_e),
                     p_o.lat_fluctuation_margin, p_e.lat_fluctuation_margin)
 
-            lat_min_now = lat_min(snapshot.lat_speed[near[others]], float(snapshot.lat_speed[ego]))
-            lat_min_next = lat_min(np.zeros(others.size), u_plan)
-            lat_gap_next = lat_gap - np.maximum(u_towards, 0.0) * dt
+            u_other = snapshot.lat_speed[near[others]]
+            lat_min_now = lat_min(u_other, float(snapshot.lat_speed[ego]))
+            # The others keep their lateral speeds over the step; the gap then with and without the ego's move.
+            still_gap = lat_gap - np.where(other_left, -u_other, u_other) * dt
             gap = np.abs(ds) - 0.5 * (snapshot.length[ego] + snapshot.length[near[others]])
             lon_min = np.where(ds > 0.0, formulas.lon_safe_distance_same_dir(v1, v_o, p_e, p_o),
                                formulas.lon_safe_distance_same_dir(v_o, v1, p_o, p_e))
-            # Pairs laterally safe now that the move would make unsafe while they are longitudinally unsafe.
+            # Pairs laterally safe now that the ego's move (and not the other's alone) would make unsafe while
+            # they are longitudinally unsafe.
             entering = (u_towards > 0.0) & ~formulas.is_safe_distance(gap, lon_min) & \
                 formulas.is_safe_distance(lat_gap, lat_min_now) & \
-                ~formulas.is_safe_distance(lat_gap_next, lat_min_next)
+                formulas.is_safe_distance(still_gap, lat_min(u_other, 0.0)) & \
+                ~formulas.is_safe_distance(still_gap - u_towards * dt, lat_min(u_other, u_plan))
             if np.any(entering):
-                c.lat_predictive += 1
+                c.lat_predictive += int(abs(u_plan) > COUNT_TOLERANCE)
                 u_plan = 0.0
 
         lateral_changed = abs(u_plan - u_planned) > 1e-9
