@@ -550,3 +550,26 @@ def test_the_motion_layer_starts_from_the_measured_acceleration_not_the_behaviou
     snap.accel[0] = 1.5
     result = EpsilonPlanner(net, ParamResolver(), PlannerConfig(desired_speed=30.0)).plan(snap, "v0")
     assert result.frenet.s_ddot[0] == pytest.approx(1.5, abs=1e-6)
+
+
+def test_the_mpdm_baseline_steps_its_speed_command_by_at_most_5_m_s_both_ways(highway):
+    """epsilon.md §8: the commanded-speed step is capped at ±5 m/s. Alone at 30 m/s with a desired 10 m/s, the
+    command was 10 (only the step up was capped) and the ego braked below 25 m/s within the 4 s; with 25 m/s it
+    stays above 25."""
+    net, _ = highway
+    snap = _snapshot([300.0], [-5.25], [30.0], ["hw0_1"])
+    result = EpsilonPlanner(net, ParamResolver(), PlannerConfig.mpdm(10.0)).plan(snap, "v0")
+    speed = result.trajectory.speed
+    assert speed.min() >= 25.0 - 1e-9 and speed[-1] < 29.0
+
+
+def test_the_followed_trajectory_moves_as_fast_as_its_speeds_between_the_simulation_samples(highway):
+    """The executed trajectory is sampled every 0.1 s from the forward simulation's 0.4 s (MPDM) samples: positions
+    interpolated linearly moved at the mean speed of each 0.4 s while the speeds changed within it, off by
+    ½·a·t·(Δt − t) (a braking MPDM ego: 0.35 m/s of placement against its speed)."""
+    net, _ = highway
+    snap = _snapshot([300.0], [-5.25], [30.0], ["hw0_1"])
+    traj = EpsilonPlanner(net, ParamResolver(), PlannerConfig.mpdm(20.0)).plan(snap, "v0").trajectory
+    moved = np.diff(traj.x) / np.diff(traj.t)  # hw0 runs along +x
+    np.testing.assert_allclose(moved, 0.5 * (traj.speed[1:] + traj.speed[:-1]), atol=2e-3)
+    assert np.ptp(np.diff(traj.speed)) > 0.05  # the speed does change within the samples

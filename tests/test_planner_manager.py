@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from conftest import NETWORKS
@@ -107,3 +108,16 @@ def test_a_context_completes_on_a_lane_change_not_on_driving_on_past_the_plannin
     assert manager.context is not None and manager.lane_changes_completed == 0
     manager.update_context(14.0, ids.index("mw_merge_1"))
     assert manager.context is None and manager.lane_changes_completed == 1
+
+
+def test_before_its_operation_time_a_context_allows_only_its_own_direction():
+    """MPDM's policies change lanes from their first layer: with a left context not yet due, its right-change
+    policy was allowed too (any policy not keeping in its first layer), and the ego changed right."""
+    manager = Manager(ManagerSettings(), layer_duration=1.0)
+    _trigger(manager, None)
+    right_now = Policy(Lon.MAINTAIN, (Lat.RIGHT,) * 5, (1.0,) * 5)
+    keep = Policy(Lon.MAINTAIN, (Lat.KEEP,) * 5, (1.0,) * 5)
+    policies = [keep, LEFT_NOW, right_now]
+    early = manager.context.operation_time - 0.5
+    assert manager.select(policies, np.array([1.0, 0.8, 0.5]), np.ones(3, bool), early) == 1  # not the right one
+    assert manager.select([keep, right_now], np.array([1.0, 0.5]), np.ones(2, bool), early) == 0

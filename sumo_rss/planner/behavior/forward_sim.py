@@ -58,6 +58,7 @@ class SimSettings:
     lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
     commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
     rss_following: bool = True  # the ego's IDM headway distance is at least the RSS safe distance to a car ahead
+    gap_informed_changes: bool = True  # the ego's lane changes by EPSILON's controller (False: IDM + pure pursuit)
 
 
 @dataclass(frozen=True, eq=False)
@@ -314,7 +315,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         ell = lookahead(v, gain, l_min, l_max)  # pure-pursuit look-ahead [m] (column 0 with the ego's settings)
         lane_target = frame.lane_ahead(centres.ravel().take(lay.tracked_cells), lane_slope, ell)
         # The ego's lane-change layers: gap-informed controller, evasive speed-up, virtual barrier.
-        changing = (lay.tracked[:, 0] != now_chain[:, 0]) & ~lay.backup
+        changing = (lay.tracked[:, 0] != now_chain[:, 0]) & ~lay.backup & settings.gap_informed_changes
         any_changing = bool(changing.any())
         hold = evasive = np.zeros(G, dtype=bool)
         evasive_v0 = None

@@ -92,8 +92,8 @@ class Manager:
 
     def _allowed(self, policy: Policy, ctx: LaneChangeContext | None, now: float) -> bool:
         keep_only = all(lat is Lat.KEEP for lat in policy.lats)
-        if ctx is None or now < ctx.operation_time - 1e-9:
-            return keep_only or (ctx is not None and policy.lats[0] is not Lat.KEEP)
+        if ctx is None or now < ctx.operation_time - 1e-9:  # before the operation time only the change under way
+            return keep_only or (ctx is not None and policy.lats[0] is ctx.direction)
         return keep_only or policy.lateral is ctx.direction
 
     def propose(self, winner: Policy | None, now: float, speed: float, ego_lane: int, start_lanes: frozenset[int],
