@@ -515,6 +515,37 @@ def test_a_car_moving_sideways_onto_another_edge_keeps_its_lateral_speed(tmp_pat
     np.testing.assert_allclose(speeds, [0.0, 1.0, 1.0, 1.0, 1.0], atol=1e-9)
 
 
+def test_a_car_that_sumo_teleports_past_a_red_light_did_not_run_it(tmp_path):
+    """SUMO teleports a car that waited too long (here 20 s) onto its next edge within the step, so it stays in the
+    data: standing at the stop line, then 13.9 m/s beyond the junction. Every such teleport was reported as a
+    red-light entry (18 of 18 in a 200 s run)."""
+    net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+    routes = tmp_path / "r.rou.xml"
+    routes.write_text(
+        '<routes><vType id="car" length="4.5" width="1.8" accel="2.6" decel="4.5" sigma="0.5" maxSpeed="15" '
+        'impatience="0.5"/><vType id="bus" vClass="bus"/>'
+        '<route id="NS" edges="N_in S_out"/><route id="NE" edges="N_in E_out"/><route id="SN" edges="S_in N_out"/>'
+        '<route id="SW" edges="S_in W_out"/><route id="EW" edges="E_in W_out"/>'
+        '<flow id="fNS" type="car" route="NS" begin="0" end="150" vehsPerHour="500"/>'
+        '<flow id="fNE" type="car" route="NE" begin="0" end="150" vehsPerHour="300"/>'
+        '<flow id="fSN" type="car" route="SN" begin="0" end="150" vehsPerHour="500"/>'
+        '<flow id="fSW" type="car" route="SW" begin="0" end="150" vehsPerHour="300"/>'
+        '<flow id="fEW" type="bus" route="EW" begin="0" end="150" vehsPerHour="150"/></routes>')
+    (tmp_path / "tls.add.xml").write_text('<additional><timedEvent type="SaveTLSStates" dest="tls.xml"/></additional>')
+    log = subprocess.run([str(sumo_tool("sumo")), "-n", str(net), "-r", str(routes), "-a", "tls.add.xml",
+                          "--step-length", "0.1", "--lanechange.duration", "3", "--precision", "6",
+                          "--time-to-teleport", "20", "--end", "80", "--no-step-log", "true", "--fcd-output",
+                          "fcd.xml"], check=True, capture_output=True, text=True, cwd=tmp_path).stderr
+    teleported = set(re.findall(r"Vehicle '([^']+)' ends teleporting", log))
+    assert teleported, log
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*(sideways|decimals)")
+        audit = audit_fcd(tmp_path / "fcd.xml", RoadNetwork.from_file(net), ParamResolver(),
+                          vehicles=read_vehicle_info(routes, net), tls_states=tmp_path / "tls.xml")
+    signal = audit.violations[audit.violations.role == "signal"]
+    assert not set(signal.vehicle_id) & teleported, signal
+
+
 def _crash_with_sumo_defaults(folder) -> tuple:
     """A follower accelerating into a braking leader, run by SUMO with its default collision action (teleport:
     the collider is moved on to the next edge in the step of the collision); returns (fcd, collisions, routes)."""

@@ -26,6 +26,9 @@ from .intersection import next_route_edge
 from .situations import VehicleFrame
 
 RED, YELLOW = "rRu", "yY"  # u: red-yellow, SUMO lets no car pass yet
+# A car that moved farther in a step than its speeds allow (plus this acceleration and slack) was teleported by SUMO
+# (a jam: "waited too long"), possibly past a stop line: that is no entry to judge.
+TELEPORT_ACCEL, TELEPORT_SLACK = 10.0, 1.0  # [m/s²], [m]
 
 
 class SignalConstraint(str, Enum):
@@ -46,6 +49,8 @@ class SignalRule:
         # id → {link: (its state, could have stopped when it turned yellow, could stop from here)} for the links
         # it may take from its approach lane
         self._approach: dict[str, dict[int, tuple[str, bool, bool]]] = {}
+        self._where: dict[str, tuple[float, float, float]] = {}  # id → (x [m], y [m], speed [m/s]) of an approacher
+        self._time: float | None = None  # [s] of the step before
 
     def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
         """SUMO's signal states at a step are those its cars moved under to get there: a car that crossed a stop
@@ -64,14 +69,15 @@ class SignalRule:
         # internal lane, or past it within one step).
         was_approaching = np.isin(snapshot.ids, list(self._approach)) if self._approach else \
             np.zeros(len(snapshot.ids), dtype=bool)
-        approach = {}
+        approach, where = {}, {}
         for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0) | was_approaching):
             vid = str(snapshot.ids[k])
             before = self._approach.get(vid, {})
             if not (links[k] >= 0).any():
                 crossed = int(inside[k]) if inside[k] >= 0 else \
                     next((lk for lk in before if j.link_to_edge[lk] == frame.edge[k]), -1)
-                if crossed in before:  # crossed the stop line of this link since the step before
+                if crossed in before and not self._teleported(vid, snapshot, k):
+                    # crossed the stop line of this link since the step before
                     char = self._state(snapshot, crossed)
                     self._judge(vid, str(snapshot.vclass[k]), char, self._could_stop(char, before[crossed], None),
                                 float(snapshot.speed[k]), snapshot.time)
@@ -81,7 +87,15 @@ class SignalRule:
                 char = self._state(snapshot, lk)
                 states[lk] = (char, self._could_stop(char, before.get(lk), bool(can_stop[k])), bool(can_stop[k]))
             approach[vid] = states
-        self._approach = approach
+            where[vid] = (float(snapshot.x[k]), float(snapshot.y[k]), float(snapshot.speed[k]))
+        self._approach, self._where, self._time = approach, where, snapshot.time
+
+    def _teleported(self, vid: str, snapshot: WorldSnapshot, k: int) -> bool:
+        """Whether car ``k`` moved farther since the step before than its speeds then and now allow."""
+        x, y, v = self._where[vid]
+        dt = snapshot.time - self._time
+        reach = max(v, float(snapshot.speed[k])) * dt + 0.5 * TELEPORT_ACCEL * dt * dt + TELEPORT_SLACK
+        return float(np.hypot(snapshot.x[k] - x, snapshot.y[k] - y)) > reach
 
     def _state(self, snapshot: WorldSnapshot, link: int) -> str:
         """The signal state character of ``link`` in ``snapshot`` ('' if unknown)."""
