@@ -217,7 +217,7 @@ def our_owed(step0: tuple[Car, Car], step1: tuple[Car, Car], opposite: bool):
     tracker = ResponsibilityTracker()
     common = dict(keys=np.array([1], dtype=np.int64), ids=np.array(["a", "b"], dtype=object),
                   uids=np.array([0, 1], dtype=np.int64), vclass=np.array(["background"] * 2, dtype=object),
-                  accel=np.zeros(2), params=RssParamArrays.stack([a.p, b.p]))
+                  accel=np.zeros(2), speed=np.zeros(2), params=RssParamArrays.stack([a.p, b.p]))
     for t, (x, y) in ((0.0, step0), (0.1, step1)):
         tracker.step(StepInput(time=t, situations=pair_situation(x, y, opposite), new_vehicle=np.zeros(2, dtype=bool),
                                **common))

@@ -26,11 +26,12 @@ def _pair(lon_safe: bool, lat_safe: bool, v_lat_a: float = 0.0) -> PairSituation
 
 
 def _step(tracker: ResponsibilityTracker, t: float, situations: PairSituations, accel=(0.0, 0.0),
-          params: RssParams = RssParams(), keys=(PAIR,)) -> None:
+          params: RssParams = RssParams(), keys=(PAIR,), speed=(10.0, 10.0)) -> None:
     tracker.step(StepInput(time=t, keys=np.array(keys, dtype=np.int64), situations=situations,
                            ids=np.array(["a", "b"], dtype=object), uids=np.array([0, 1], dtype=np.int64),
                            vclass=np.array(["background"] * 2, dtype=object), accel=np.array(accel, dtype=float),
-                           params=RssParamArrays.stack([params, params]), new_vehicle=np.zeros(2, dtype=bool)))
+                           speed=np.array(speed, dtype=float), params=RssParamArrays.stack([params, params]),
+                           new_vehicle=np.zeros(2, dtype=bool)))
 
 
 def _rear_car_run(accels: list[float], rho: float) -> ResponsibilityTracker:
@@ -58,6 +59,24 @@ def test_the_step_in_which_the_response_time_ends_is_bounded_by_the_time_weighte
     assert violation["bound"] == pytest.approx(-0.25) and violation["excess"] == pytest.approx(0.75)
     on_the_grid = _rear_car_run([3.5] * 9 + [0.0, -3.0], rho=1.0)  # ρ = 1 s ends with a step: −b_min after it
     assert [(v["bound"], v["t_start_s"]) for v in on_the_grid.violation_records] == [(-4.0, pytest.approx(1.2))]
+
+
+def test_the_step_that_ends_an_episode_is_judged_also_where_the_pair_is_no_longer_evaluated():
+    """An FCD written every 1 s: a step after its t_b the pair is no longer a candidate (one car has left the
+    junction), yet the rear car's acceleration over that step (+2.6 m/s² after its 1 s response time) was driven
+    while the pair was in danger. It was not judged, and the collision between the two steps was blamed on
+    nobody. Its lateral duty cannot be judged there (no lateral speeds without the pair's frame)."""
+    tracker = ResponsibilityTracker()
+    _step(tracker, 0.0, _pair(True, False))
+    _step(tracker, 1.0, _pair(False, False, v_lat_a=0.3))
+    _step(tracker, 2.0, _pair(False, False, v_lat_a=0.3), accel=(2.6, 0.0))  # within ρ: allowed
+    _step(tracker, 3.0, _pair(False, False), accel=(2.6, 0.0), keys=())  # gone from the candidates
+    tracker.finish()
+    (episode,) = tracker.episode_records
+    assert (episode["t_b_s"], episode["t_end_s"], episode["ended_by"]) == (1.0, 3.0, "safe")
+    (violation,) = tracker.violation_records
+    assert violation["constraint"] == "lon-brake-after-response-time" and violation["vehicle_id"] == "a"
+    assert violation["worst_actual"] == pytest.approx(2.6) and episode["responsible"] == "a"
 
 
 def test_the_step_that_ends_an_episode_is_judged_the_one_that_starts_it_is_not():

@@ -183,7 +183,8 @@ class Auditor:
         new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
-            vclass=snapshot.vclass, accel=snapshot.accel, params=params, new_vehicle=new_vehicle, areas=areas,
+            vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed, params=params,
+            new_vehicle=new_vehicle, areas=areas,
             area_number=area_number))
         if self.trace_class is not None:
             self._trace(snapshot.time, keys, situations)

@@ -46,6 +46,7 @@ class StepInput:
     uids: np.ndarray  # int64 per snapshot row: a number for each vehicle id, the same at every step
     vclass: np.ndarray
     accel: np.ndarray  # [m/s²] per snapshot row
+    speed: np.ndarray  # [m/s] per snapshot row
     params: RssParamArrays  # per snapshot row
     new_vehicle: np.ndarray  # bool per snapshot row: not seen at the previous step
     # Intersections: every conflict area's rules of every crossing pair (not only the row kept per pair), and the
@@ -184,11 +185,11 @@ class ResponsibilityTracker:
         self._ended_now = dict(zip(self._open.keys[gone].tolist(), self._close(gone, step.time, end_of_data=True)))
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
-        # 2. Compliance of both cars in every episode whose pair is still a candidate (the first judged step is the
-        # one after t_b). An episode that ends now is judged at this step too: the acceleration reported now was
-        # driven from the step before, when the pair was still dangerous.
-        if np.any(found):
-            self._check_compliance(step, sit_rows[pos], found, still_dangerous)
+        # 2. Compliance of both cars in every open episode (the first judged step is the one after t_b). An episode
+        # that ends now is judged at this step too: the acceleration reported now was driven from the step before,
+        # when the pair was still dangerous; also one whose pair is no longer a candidate (far apart now).
+        if len(self._open):
+            self._check_compliance(step, sit_rows[pos] if len(keys) else pos, found, still_dangerous)
         self._ended_now.update(zip(self._open.keys[~still_dangerous].tolist(),
                                    self._close(~still_dangerous, step.time)))
         # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
@@ -297,21 +298,30 @@ class ResponsibilityTracker:
 
     def _check_compliance(self, step: StepInput, rows: np.ndarray, candidate: np.ndarray,
                           in_danger: np.ndarray) -> None:
-        """Evaluate every owed constraint for both cars of each open episode at ``step.time``: those whose pair is
-        a ``candidate`` now (situation ``rows``; elsewhere ``rows`` is ignored); ``in_danger``: the pair is still
-        dangerous (its margins count)."""
+        """Evaluate every owed constraint for both cars of each open episode at ``step.time`` (both cars are in the
+        snapshot): with the pair's situation where it is a ``candidate`` now (situation ``rows``; elsewhere ``rows``
+        is ignored); elsewhere (far apart now, e.g. one has left the junction) only the longitudinal constraints,
+        on the cars' own accelerations and speeds: the pair's lateral speeds are not known there. ``in_danger``: the
+        pair is still dangerous (its margins count)."""
         e, sit, t = self._open, step.situations, step.time
-        e.min_lon_margin = np.where(in_danger, np.minimum(e.min_lon_margin, sit.lon_gap[rows] - sit.lon_d_min[rows]),
-                                    e.min_lon_margin)
-        e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin, sit.lat_gap[rows] - sit.lat_d_min[rows]),
-                                    e.min_lat_margin)
+        if len(sit):
+            e.min_lon_margin = np.where(in_danger, np.minimum(e.min_lon_margin,
+                                                              sit.lon_gap[rows] - sit.lon_d_min[rows]), e.min_lon_margin)
+            e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin,
+                                                              sit.lat_gap[rows] - sit.lat_d_min[rows]), e.min_lat_margin)
         e.t_last = np.where(candidate, t, e.t_last)
-        judged = candidate & (t > e.t_b + TIME_EPS)
-        cars = np.column_stack([sit.a[rows], sit.b[rows]])  # [n, 2] snapshot rows
+        judged = t > e.t_b + TIME_EPS
+        by_uid = np.argsort(step.uids)
+        own = by_uid[np.searchsorted(step.uids[by_uid], e.uids)]  # [n, 2] snapshot rows of the cars
+        pair = candidate[:, None]
+        if len(sit):
+            cars = np.where(pair, np.column_stack([sit.a[rows], sit.b[rows]]), own)  # [n, 2] snapshot rows
+            v_lon = np.where(pair, np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]), step.speed[own])
+            v_lat = np.where(pair, np.column_stack([sit.v_lat_a[rows], sit.v_lat_b[rows]]), 0.0)
+        else:
+            cars, v_lon, v_lat = own, step.speed[own], np.zeros(own.shape)
         p = step.params
         accel = step.accel[cars]
-        v_lon = np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]])
-        v_lat = np.column_stack([sit.v_lat_a[rows], sit.v_lat_b[rows]])
         rho = p.response_time[cars]
         tau = (t - e.t_b)[:, None]
         in_response = tau <= rho + TIME_EPS
@@ -336,7 +346,7 @@ class ResponsibilityTracker:
         actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
         left = np.column_stack([e.a_left, ~e.a_left])
         u = np.where(left, -v_lat, v_lat)
-        applies[..., 3] = e.owed_lat[:, None]
+        applies[..., 3] = e.owed_lat[:, None] & pair
         actual[..., 3] = u
         # Once a car's speed towards the other is ≤ 0 from ρ on, it must stay there.
         bound[..., 3] = np.where(e.lat_settled, 0.0,
