@@ -7,9 +7,10 @@ import json
 import os
 import platform
 import subprocess
-import tempfile
 import time
 from pathlib import Path
+
+from sumo_rss.files import write_json
 
 RESULTS = Path(__file__).resolve().parent / "results.json"
 
@@ -47,7 +48,10 @@ def _code() -> dict:
         return subprocess.run(["git", *args], cwd=RESULTS.parent, capture_output=True, text=True,
                               check=True).stdout.strip()
     try:
-        return {"commit": git("rev-parse", "HEAD"), "dirty": bool(git("status", "--porcelain", "--untracked-files=no"))}
+        # results.json itself (written by every benchmark) is not a change to the code measured.
+        changes = git("status", "--porcelain", "--untracked-files=no", "--", ":(top)",
+                      ":(top,exclude)bench/results.json")
+        return {"commit": git("rev-parse", "HEAD"), "dirty": bool(changes)}
     except (OSError, subprocess.CalledProcessError):
         return {"commit": None, "dirty": None}
 
@@ -55,7 +59,7 @@ def _code() -> dict:
 def record(name: str, figures: dict, options: argparse.Namespace) -> None:
     """Store ``figures`` under ``benchmarks.<name>`` with the machine and commit they were measured on (or print
     them, with ``--no-record``). Benchmarks run at the same time each keep their entry: the read-modify-write holds
-    a lock, and the file is replaced by a complete, synced temporary file."""
+    a lock, and the file is replaced by a complete temporary file (numpy numbers as their values)."""
     entry = {"measured_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "machine": machine(), **figures}
     if not options.record:
         print(json.dumps({name: entry}, indent=2, sort_keys=True))
@@ -64,9 +68,4 @@ def record(name: str, figures: dict, options: argparse.Namespace) -> None:
         fcntl.flock(lock, fcntl.LOCK_EX)
         data = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
         data.setdefault("benchmarks", {})[name] = entry
-        with tempfile.NamedTemporaryFile("w", dir=RESULTS.parent, prefix=".results.", suffix=".tmp",
-                                         delete=False) as tmp:
-            tmp.write(json.dumps(data, indent=2, sort_keys=True) + "\n")
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.replace(tmp.name, RESULTS)
+        write_json(RESULTS, data)
