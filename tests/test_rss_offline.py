@@ -546,6 +546,25 @@ def test_a_car_that_sumo_teleports_past_a_red_light_did_not_run_it(tmp_path):
     assert not set(signal.vehicle_id) & teleported, signal
 
 
+def test_an_fcd_without_types_takes_each_cars_type_from_the_route_file(tmp_path):
+    """``--fcd-output.attributes`` without ``type``: every car was audited at SUMO's default 5 m x 1.8 m although
+    the route file gives its vehicle or flow a vType."""
+    routes = tmp_path / "r.rou.xml"
+    routes.write_text('<routes><vType id="small" length="3.0" width="1.5"/>'
+                      '<vehicle id="a" type="small" depart="0"><route edges="hw0 hw1 hw2"/></vehicle>'
+                      '<flow id="f" type="small" begin="0" end="10" number="2"><route edges="hw0 hw1 hw2"/></flow>'
+                      '<vehicle id="d" depart="0"><route edges="hw0 hw1 hw2"/></vehicle></routes>')
+    fcd = tmp_path / "f.xml"
+    cars = "".join(_fcd_vehicle(v, x) for v, x in (("a", 20.0), ("f.1", 60.0), ("d", 100.0), ("z", 140.0)))
+    untyped = cars.replace(' type="car"', "")
+    fcd.write_text(f'<fcd-export><timestep time="0.00">{untyped}</timestep></fcd-export>')
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*decimals")
+        (snap,) = FcdReader(fcd, RoadNetwork.from_file(HIGHWAY), read_vehicle_info(routes, HIGHWAY))
+    assert snap.vtype.tolist() == ["small", "small", "DEFAULT_VEHTYPE", "DEFAULT_VEHTYPE"]
+    assert snap.length.tolist() == [3.0, 3.0, 5.0, 5.0] and snap.width.tolist() == [1.5, 1.5, 1.8, 1.8]
+
+
 def _crash_with_sumo_defaults(folder) -> tuple:
     """A follower accelerating into a braking leader, run by SUMO with its default collision action (teleport:
     the collider is moved on to the next edge in the step of the collision); returns (fcd, collisions, routes)."""

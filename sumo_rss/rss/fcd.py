@@ -47,13 +47,23 @@ class VehicleInfo:
     sizes: dict[str, tuple[float, float]] = field(default_factory=dict)  # vType → (length, width) [m]
     dynamics: dict[str, tuple[float, float]] = field(default_factory=dict)  # vType → (tau [s], decel [m/s²])
     routes: dict[str, tuple[str, ...]] = field(default_factory=dict)  # vehicle or flow id → edges
+    types: dict[str, str] = field(default_factory=dict)  # vehicle or flow id → vType (for an FCD without 'type')
 
     def route_of(self, vehicle_id: str) -> tuple[str, ...] | None:
         """The route of a vehicle, or of the flow that made it (``flow.k``); None if unknown."""
-        if vehicle_id in self.routes:
-            return self.routes[vehicle_id]
-        flow = vehicle_id.rsplit(".", 1)[0]
-        return self.routes.get(flow) if flow != vehicle_id else None
+        return _of_vehicle(self.routes, vehicle_id)
+
+    def type_of(self, vehicle_id: str) -> str | None:
+        """The vType of a vehicle, or of the flow that made it (``flow.k``); None if unknown."""
+        return _of_vehicle(self.types, vehicle_id)
+
+
+def _of_vehicle(table: dict, vehicle_id: str):
+    """``table``'s entry for a vehicle, or for the flow that made it (``flow.k``); None if neither has one."""
+    if vehicle_id in table:
+        return table[vehicle_id]
+    flow = vehicle_id.rsplit(".", 1)[0]
+    return table.get(flow) if flow != vehicle_id else None
 
 
 def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> VehicleInfo:
@@ -88,6 +98,7 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
         if elem.tag == "route" and elem.get("id"):
             named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
         elif elem.tag in ("flow", "vehicle"):
+            info.types[elem.get("id", "")] = elem.get("type", "DEFAULT_VEHTYPE")
             inside = elem.find("route")
             if inside is not None:
                 info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
@@ -292,7 +303,9 @@ class FcdReader:
             lane = self.network.lane_indices(lane_id)
         except UnknownLaneError as exc:
             raise FcdError(f"{where}: {exc}; is --net the network of this run?") from exc
-        vtype = np.array([r.get("type", "DEFAULT_VEHTYPE") for r in rows], dtype=str)
+        # Without 'type' in the FCD, the route files' vehicles and flows tell it.
+        vtype = np.array([r.get("type") or self.vehicles.type_of(r["id"]) or "DEFAULT_VEHTYPE" for r in rows],
+                         dtype=str)
         unknown = set(vtype.tolist()) - self.vehicles.sizes.keys() - self._unknown_types
         if unknown:
             self._unknown_types |= unknown
