@@ -145,30 +145,28 @@ def test_a_preset_sweep_rechecks_the_egos_overrides_at_load(two_scenarios, valid
         load_batch(two_scenarios / "sweep.toml").tasks()
 
 
+def _scaled_tasks(folder, scenario: str, scale: float) -> list[Task]:
+    (folder / "scaled.toml").write_text(f'[batch]\nscenarios = ["{scenario}"]\n[batch.grid]\n'
+                                        f'demand_scale = [{scale}]\n')
+    return load_batch(folder / "scaled.toml").tasks()
+
+
 def test_a_demand_scale_beyond_what_a_probability_flow_can_insert_is_refused(two_scenarios, valid_scenario):
     """SUMO draws at most one vehicle per second from a probability flow: 0.6 x 2 was silently capped at 1."""
     valid_scenario["demand"]["flows"][0] = {"id": "drawn", "route": ["hw0", "hw1", "hw2"], "probability": 0.6}
     write_scenario(two_scenarios, valid_scenario, "drawn.toml")
-    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["drawn.toml"]\n[batch.grid]\n'
-                                               'demand_scale = [1.5]\n')
-    assert load_batch(two_scenarios / "scaled.toml").tasks()[0].spec.demand.flows[0].probability == pytest.approx(0.9)
-    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["drawn.toml"]\n[batch.grid]\n'
-                                               'demand_scale = [2.0]\n')
+    assert _scaled_tasks(two_scenarios, "drawn.toml", 1.5)[0].spec.demand.flows[0].probability == pytest.approx(0.9)
     with pytest.raises(ScenarioError, match=r"drawn\.toml: demand\.flows\[0\]\.probability: demand_scale 2 makes "
                                             r"it 1\.2 per second, above the at most 1 of a probability flow"):
-        load_batch(two_scenarios / "scaled.toml").tasks()
+        _scaled_tasks(two_scenarios, "drawn.toml", 2.0)
 
 
 def test_a_demand_scale_beyond_the_densest_flow_a_scenario_may_ask_for_is_refused(two_scenarios):
     """The same 20000 veh/h bound as in a scenario file: 3000 x 10 was let through."""
-    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["busy.toml"]\n[batch.grid]\n'
-                                               'demand_scale = [6.0]\n')
-    assert load_batch(two_scenarios / "scaled.toml").tasks()[0].spec.demand.flows[0].veh_per_hour == 18000
-    (two_scenarios / "scaled.toml").write_text('[batch]\nscenarios = ["busy.toml"]\n[batch.grid]\n'
-                                               'demand_scale = [10.0]\n')
+    assert _scaled_tasks(two_scenarios, "busy.toml", 6.0)[0].spec.demand.flows[0].veh_per_hour == 18000
     with pytest.raises(ScenarioError, match=r"busy\.toml: demand\.flows\[0\]\.veh_per_hour: demand_scale 10 makes it "
                                             r"30000 veh/h, above the at most 20000 veh/h of a flow"):
-        load_batch(two_scenarios / "scaled.toml").tasks()
+        _scaled_tasks(two_scenarios, "busy.toml", 10.0)
 
 
 def test_a_controller_sweep_runs_a_scenario_without_an_ego_once_per_other_variant(two_scenarios, valid_scenario):
