@@ -399,7 +399,7 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
         if not isinstance(speed, str):
             slowest = min(drawn, key=lambda v: v.max_speed)
             check_depart_speed(f, float(speed), topology.edges[route[0]], slowest.max_speed,
-                               f"the max_speed of vType {slowest.id!r}")
+                               f"the max_speed of vType {slowest.id!r}", min(v.speed_factor for v in drawn))
         depart_lane = read_depart_lane(f, route[0], topology)
         for v in drawn:
             check_route_permits(f, route, v.vclass, f"vType {v.id!r}", topology, depart_lane)
@@ -475,7 +475,8 @@ def _read_ego(t: TableReader, topology: NetTopology, duration: float) -> EgoSpec
         planner=_read_planner(t.table("planner")),
     )
     check_depart_speed(t, spec.depart_speed, first, min(spec.vehicle.max_speed, spec.desired_speed),
-                        "the ego's top speed under SUMO, min(vehicle.max_speed, desired_speed)")
+                       "the ego's top speed under SUMO, min(vehicle.max_speed, desired_speed)",
+                       spec.vehicle.speed_factor)
     check_route_permits(t, route, spec.vehicle.vclass, "the ego", topology, spec.depart_lane)
     t.finish()
     return spec

@@ -47,12 +47,15 @@ def read_depart_lane(t: TableReader, first_edge: str, topology: NetTopology) -> 
                                  f"{', '.join(repr(v) for v in DEPART_LANES)}", value)
 
 
-def check_depart_speed(t: TableReader, speed: float, edge: EdgeInfo, top_speed: float, what: str) -> None:
+def check_depart_speed(t: TableReader, speed: float, edge: EdgeInfo, top_speed: float, what: str,
+                       speed_factor: float) -> None:
     """SUMO stops the run when a car departs faster than its vType's maxSpeed (``top_speed``, described by
-    ``what``) or its lane's speed limit."""
+    ``what``) or than its own speed limit on the lane, ``speed_factor`` x the lane's (a car's drawn factor: with a
+    speed_dev, SUMO redraws the factors of the cars it would stop for, biasing them upwards)."""
     if speed > top_speed:
         raise t.error("depart_speed", f"expected at most {top_speed:g} m/s, {what} (SUMO refuses a faster "
                                       "departure)", speed)
-    if speed > edge.speed:
-        raise t.error("depart_speed", f"expected at most {edge.speed:g} m/s, the speed limit of {edge.id!r} (SUMO "
-                                      "refuses a faster departure)", speed)
+    limit = speed_factor * edge.speed
+    if speed > limit + 1e-9:
+        raise t.error("depart_speed", f"expected at most {limit:g} m/s, speed_factor {speed_factor:g} x the speed "
+                                      f"limit of {edge.id!r} (SUMO refuses a faster departure)", speed)
