@@ -194,7 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
                                       "SUMO's netconvert, or check that the committed nets are up to date.",
                           epilog=_NETS_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     nets.add_argument("action", choices=("build", "check"))
-    nets.add_argument("--root", type=Path, help="networks folder (default: the repository's networks/)")
+    nets.add_argument("--root", type=Path, help="networks folder (default: $SUMO_RSS_NETWORKS if set, else the "
+                                                "repository's networks/)")
 
     intent = sub.add_parser("train-intent", parents=[common], help="train the intention estimator",
                             description="Record labelled intention samples from libsumo runs of the scenarios "
@@ -380,8 +381,12 @@ def _cmd_nets(args: argparse.Namespace) -> int:
             print(f"sumo-rss: error: {exc}", file=sys.stderr)
             broken.append(d.name)
             continue
-        committed = (d / f"{d.name}.net.xml").read_text(encoding="utf-8")
-        same = without_generator_header(fresh) == without_generator_header(committed)
+        committed_file = d / f"{d.name}.net.xml"
+        if not committed_file.is_file():
+            print(f"{d.name}: MISSING {committed_file.name} (run: sumo-rss nets build)")
+            stale.append(d.name)
+            continue
+        same = without_generator_header(fresh) == without_generator_header(committed_file.read_text(encoding="utf-8"))
         print(f"{d.name}: {'up to date' if same else 'STALE (run: sumo-rss nets build)'}")
         stale += [] if same else [d.name]
     return EXIT_BAD_INPUT if broken else 1 if stale else 0

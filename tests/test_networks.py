@@ -101,6 +101,24 @@ def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_
                                         "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]
 
 
+def test_nets_check_names_a_misspelt_source_attribute_and_a_missing_net(tmp_path):
+    """The sources declare SUMO's schemas, so netconvert validates them: numLane= for numLanes= built a one-lane
+    hw0 without a word (and where the typo repeated a default, 'check' said up to date). A deleted net.xml was an
+    OSError that stopped the check before the other networks."""
+    root = tmp_path / "nets"
+    shutil.copytree(NETWORKS, root)
+    edges = root / "highway" / "highway.edg.xml"
+    edges.write_text(edges.read_text().replace('numLanes="3"', 'numLane="3"', 1))
+    (root / "intersection_tls" / "intersection_tls.net.xml").unlink()
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "nets", "check", "--root", str(root)],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 2
+    assert proc.stdout.splitlines() == ["intersection_priority: up to date",
+                                        "intersection_tls: MISSING intersection_tls.net.xml (run: sumo-rss nets build)",
+                                        "merge: up to date"]
+    assert "Error: attribute 'numLane' is not declared for element 'edge' In file 'highway.edg.xml'" in proc.stderr
+
+
 def test_frenet_takes_lane_ids_or_indices_and_names_unknown_lanes():
     """hw0 runs along +x with its left border at y = 0 and 3.5 m lanes: lane 1's centre is y = −5.25 m."""
     import numpy as np

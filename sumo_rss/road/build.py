@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import re
 import subprocess
+import warnings
 from pathlib import Path
 
 from ..errors import SumoRssError
@@ -27,6 +28,9 @@ def build_network(network_dir: Path, output: Path | None = None) -> Path:
     proc = subprocess.run(cmd, cwd=network_dir, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise SumoRssError(f"netconvert failed for {config}: {' '.join(proc.stderr.split())}")  # one line
+    for line in proc.stderr.splitlines():  # what netconvert warned about (e.g. a junction shape it moved)
+        if line.startswith("Warning:"):
+            warnings.warn(f"{config}: netconvert: {line.removeprefix('Warning:').strip()}", stacklevel=2)
     return Path(output) if output is not None else network_dir / f"{network_dir.name}.net.xml"
 
 
