@@ -57,6 +57,25 @@ def test_the_memory_interpolates_the_past_and_extrapolates_before_it(estimator):
     assert np.isnan(belief._memory[belief._row["c"], :, 0]).sum() == belief._memory.shape[1] - 1  # a fresh row
 
 
+@pytest.mark.parametrize("hz", [10, 20, 50])
+def test_the_memory_spans_the_whole_history_however_often_the_planner_is_called(estimator, hz):
+    """A fixed 33 calls covered the 2 s history only up to ~16 Hz: at 20 Hz its oldest points were extrapolated
+    although the car had been seen there (y -1.6, -1.6, -1.6, -1.4, ... for -2.0, -1.8, ...), at 50 Hz the first
+    seven. 'a' drives north at 10 m/s drifting right at 1 m/s for 3 s."""
+    period = 1.0 / hz
+    belief = LearnedBelief(_net("highway"), estimator, period=period)
+    calls = round(3.0 * hz)
+    for k in range(calls + 1):
+        t = k * period
+        belief.observe(_snapshot(t, ["a"], [100.0 + t], [10.0 * t], [np.pi / 2], [10.0], ["hw0_1"], [0]))
+    now_t = calls * period
+    now = _snapshot(now_t, ["a"], [100.0 + now_t], [10.0 * now_t], [np.pi / 2], [10.0], ["hw0_1"], [0])
+    past_x, past_y, _ = belief._history(now, np.array([0]))
+    want = now_t - 0.2 * np.arange(HISTORY_STEPS)[::-1]
+    np.testing.assert_allclose(past_x[0], 100.0 + want, atol=1e-9)
+    np.testing.assert_allclose(past_y[0], 10.0 * want, atol=1e-9)
+
+
 def test_an_agent_near_the_end_of_the_acceleration_lane_is_expected_to_merge(estimator):
     net = _net("merge")
     k = int(net.lane_indices(np.array(["mw_merge_0"]))[0])

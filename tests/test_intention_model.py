@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -224,3 +226,45 @@ def test_recorded_data_is_reused_only_from_the_same_scenario_files_and_no_sample
     highway = DataPlan((SCENARIOS / "highway_dense.toml",), (0,), (100,), 20.0)
     with pytest.raises(SumoRssError, match="no samples in .*highway_dense.toml at seeds 0: .*--all-samples"):
         train_intent(highway, tmp_path / "hw", TrainSettings(epochs=1), show_progress=False)
+
+
+@pytest.mark.parametrize("step_s, usable", [(0.1, True), (0.05, True), (0.25, False), (0.5, False), (0.3, False)])
+def test_samples_need_a_step_that_divides_the_history_sampling_and_horizon(tmp_path, step_s, usable):
+    """0.25 s spread the 11 history points 0.25 s apart (2.5 s of history, without a word); 0.5 s divided by zero in
+    every recording process of train-intent."""
+    if usable:
+        dataset.check_step(step_s, "s.toml")
+        return
+    with pytest.raises(ValueError, match=rf"s\.toml: step_s {step_s:g} s: intention samples need a step that divides "
+                                         r"0\.2 s \(the history's spacing\), 0\.5 s \(sampling\) and 3 s \(horizon\)"):
+        dataset.check_step(step_s, "s.toml")
+    scenario = tmp_path / "coarse.toml"
+    scenario.write_text((SCENARIOS / "merge_onramp.toml").read_text().replace("seed = 0", f"seed = 0\nstep_s = {step_s}"))
+    proc = subprocess.run([sys.executable, "-m", "sumo_rss", "train-intent", "--scenarios", str(scenario),
+                           "--train-seeds", "0", "--test-seeds", "100", "--out", str(tmp_path / "out"), "--quiet"],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 2 and f"coarse.toml: step_s {step_s:g} s" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_shipped_card_describes_the_shipped_weights():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_estimator() is not None
+
+
+def test_a_card_with_another_size_or_architecture_warns_and_the_weights_are_still_used(tmp_path):
+    """Nothing read intention.json: a card with another size or architecture than the weights beside it (a .pt
+    copied without its card) was taken as theirs without a word."""
+    torch.manual_seed(0)
+    weights = tmp_path / "intention.pt"
+    save_weights(IntentionNet(**ARCHITECTURE), ARCHITECTURE, weights)
+    card = {"weights_bytes": weights.stat().st_size, "architecture": {**ARCHITECTURE, "lane_channels": [32, 64]}}
+    (tmp_path / "intention.json").write_text(json.dumps(card))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_estimator(weights) is not None  # the card agrees
+    (tmp_path / "intention.json").write_text(json.dumps({**card, "weights_bytes": 1,
+                                                         "architecture": {**card["architecture"], "hidden": 32}}))
+    with pytest.warns(UserWarning, match=r"intention\.json does not describe intention\.pt \(weights_bytes: card 1, "
+                                         r"weights \d+; architecture: card .*'hidden': 32.*\): its data and figures"):
+        assert load_estimator(weights) is not None

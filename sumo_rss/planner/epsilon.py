@@ -128,7 +128,8 @@ class EpsilonPlanner:
         self._last_centre: tuple[WorldSnapshot, int, RoadFrame, tuple[np.ndarray, ...]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
-        self.belief = _learned_belief(network) if config.mode == "epsilon" and config.intention_net else None
+        self.belief = _learned_belief(network, config.output_step * config.replan_every) \
+            if config.mode == "epsilon" and config.intention_net else None
         self.motion = MotionLayer(config.motion, config.output_step) if config.motion.enabled else None
 
     # -----------------------------------------------------------------------------------------------------
@@ -445,16 +446,17 @@ class EpsilonPlanner:
                            float(vehicles.s[0]) + stop_distance)
 
 
-def _learned_belief(network: RoadNetwork) -> LearnedBelief | None:
+def _learned_belief(network: RoadNetwork, period: float) -> LearnedBelief | None:
     """The intention network's belief (None if its weights are unusable), or None on a network where no lane
-    branches or ends, which never asks it: torch is then not even imported (~2 s saved per run)."""
+    branches or ends, which never asks it: torch is then not even imported (~2 s saved per run). ``period`` [s]:
+    between two planning calls."""
     if not network_branches(network):
         return None
     from .intention.belief import LearnedBelief
     from .intention.estimator import load_estimator
 
     estimator = load_estimator()
-    return LearnedBelief(network, estimator) if estimator is not None else None
+    return LearnedBelief(network, estimator, period) if estimator is not None else None
 
 
 def _speed_reach(v: float) -> float:

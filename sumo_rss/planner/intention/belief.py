@@ -9,6 +9,8 @@ training data; everywhere else the rules stay.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 
@@ -17,17 +19,21 @@ from ...sim.snapshot import WorldSnapshot
 from .estimator import IntentionEstimator
 from .features import HISTORY_DT, HISTORY_STEPS, CandidateFinder, history_in_agent_frame
 
-MEMORY = HISTORY_STEPS * 3  # planning calls remembered per vehicle (covers 2 s at up to 15 Hz replanning)
+MEMORY_SPARE = 2  # planning calls remembered beyond those the history spans (a late or skipped call)
 
 
 class LearnedBelief:
-    def __init__(self, network: RoadNetwork, estimator: IntentionEstimator):
+    def __init__(self, network: RoadNetwork, estimator: IntentionEstimator, period: float = 0.1):
+        """``period`` [s]: between two planning calls (the co-simulation step x replan_every); the memory holds
+        the calls of the whole history (2 s), however often the planner is called (a fixed 33 calls covered it
+        only up to ~16 Hz)."""
         torch.set_num_threads(1)  # the planner runs on one core; tiny batches gain nothing from threads
         self.network = network
         self.estimator = estimator
         self.finder = CandidateFinder(network)
+        self.memory = math.ceil((HISTORY_STEPS - 1) * HISTORY_DT / period - 1e-9) + 1 + MEMORY_SPARE  # calls
         self._row: dict[str, int] = {}  # vehicle id → row of the memory
-        self._memory = np.full((0, MEMORY, 4), np.nan)  # [rows, MEMORY, (time, x, y, signals)], a ring per row
+        self._memory = np.full((0, self.memory, 4), np.nan)  # [rows, memory, (time, x, y, signals)], a ring per row
         self._calls = 0
         self._branches: dict[int, bool] = {}
 
@@ -39,7 +45,7 @@ class LearnedBelief:
         free = sorted(set(range(self._memory.shape[0])) - set(kept.values()))
         new = [vid for vid in ids if vid not in kept]
         if len(new) > len(free):
-            grow = np.full((len(new) - len(free), MEMORY, 4), np.nan)
+            grow = np.full((len(new) - len(free), self.memory, 4), np.nan)
             free += list(range(self._memory.shape[0], self._memory.shape[0] + grow.shape[0]))
             self._memory = np.concatenate([self._memory, grow])
         for vid, row in zip(new, free):
@@ -47,7 +53,7 @@ class LearnedBelief:
             self._memory[row] = np.nan
         self._row = kept
         rows = np.array([kept[vid] for vid in ids], dtype=int)
-        column = self._calls % MEMORY
+        column = self._calls % self.memory
         self._memory[rows, column] = np.column_stack([np.full(len(ids), snapshot.time), snapshot.x, snapshot.y,
                                                       snapshot.signals])
         self._calls += 1
@@ -87,9 +93,9 @@ class LearnedBelief:
         drives straight at its current speed with its current signals."""
         n = rows.size
         want = snapshot.time - HISTORY_DT * np.arange(HISTORY_STEPS)[::-1]  # [H]
-        memory = np.full((n, MEMORY, 4), np.nan)
+        memory = np.full((n, self.memory, 4), np.nan)
         known = np.array([self._row.get(vid, -1) for vid in snapshot.ids[rows].tolist()], dtype=int)
-        chronological = (self._calls + np.arange(MEMORY)) % MEMORY  # oldest column first
+        chronological = (self._calls + np.arange(self.memory)) % self.memory  # oldest column first
         memory[known >= 0] = self._memory[known[known >= 0]][:, chronological]
         now = np.column_stack([np.full(n, snapshot.time), snapshot.x[rows], snapshot.y[rows], snapshot.signals[rows]])
         unseen = np.isnan(memory[:, -1, 0])
@@ -98,7 +104,7 @@ class LearnedBelief:
         first = np.argmax(~np.isnan(times), axis=1)  # [n] oldest remembered column (NaN columns come first)
         before = np.sum(times[:, None, :] <= want[None, :, None] + 1e-9, axis=2)  # [n, H] columns at or before
         at = np.maximum(first[:, None] + before - 1, first[:, None])
-        nxt = np.minimum(at + 1, MEMORY - 1)
+        nxt = np.minimum(at + 1, self.memory - 1)
         i = np.arange(n)[:, None]
         t0, t1 = times[i, at], times[i, nxt]
         frac = np.clip(np.where(t1 > t0, (want[None, :] - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0), 0.0, 1.0)

@@ -34,6 +34,16 @@ ARRAYS = ("history", "lanes", "mask", "lateral", "target", "offset", "lat_speed"
           "scenario", "seed", "time")
 
 
+def check_step(step_s: float, source: object) -> None:
+    """ValueError naming ``source`` unless the step ``step_s`` [s] divides the history spacing, the sampling period
+    and the horizon (0.25 s made the history 0.25 s apart, 0.5 s divided by zero)."""
+    steps = np.array([HISTORY_DT, SAMPLE_EVERY, FUTURE]) / step_s
+    if np.any(np.round(steps) < 1) or np.any(np.abs(steps - np.round(steps)) > 1e-6):
+        raise ValueError(f"{source}: step_s {step_s:g} s: intention samples need a step that divides {HISTORY_DT:g} s "
+                         f"(the history's spacing), {SAMPLE_EVERY:g} s (sampling) and {FUTURE:g} s (horizon), e.g. "
+                         "0.1 or 0.05 s")
+
+
 def family_of(network: str) -> str:
     """Scenario family of a network name ('intersection', 'merge', 'highway')."""
     return FAMILIES.get(network, network)
@@ -72,6 +82,7 @@ def samples_from_steps(network: RoadNetwork, steps: list, step_s: float, scenari
         offset[rows, t], lat_speed[rows, t], signals[rows, t] = vlat, vls, vsig
         lane[rows, t] = network.lane_indices(vlane)
     times = np.array([rec[0] for rec in steps])
+    check_step(step_s, scenario)
     every, back, ahead = (round(v / step_s) for v in (SAMPLE_EVERY, HISTORY_DT, FUTURE))
     past = np.arange(-(HISTORY_STEPS - 1) * back, 1, back)  # step offsets of the history, oldest first
     t_idx = np.arange(-past[0], len(steps) - ahead)

@@ -6,6 +6,7 @@ the planner then keeps its rule-based belief (never a crash).
 """
 from __future__ import annotations
 
+import json
 import warnings
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from .model import IntentionNet, candidate_probabilities
 
 FORMAT = 1
 SHIPPED_WEIGHTS = Path(__file__).with_name("weights") / "intention.pt"
+CARD_FILE = "intention.json"  # the card train-intent writes beside the weights
 
 
 class IntentionEstimator:
@@ -56,4 +58,24 @@ def load_estimator(path: Path | None = None) -> IntentionEstimator | None:
         warnings.warn(f"intention weights {path} not usable ({type(exc).__name__}: {exc}); "
                       "using the rule-based intention belief instead", stacklevel=2)
         return None
+    _check_card(path, architecture)
     return IntentionEstimator(net)
+
+
+def _check_card(weights: Path, architecture: dict) -> None:
+    """Warn when the card beside the weights (``intention.json``, written with them by train-intent) describes
+    other weights: another file size or architecture; its data and figures are then not these weights'."""
+    card_file = weights.with_name(CARD_FILE)
+    if not card_file.is_file():
+        return
+    try:
+        card = json.loads(card_file.read_text(encoding="utf-8"))
+        differs = [f"{key}: card {card.get(key)!r}, weights {actual!r}" for key, actual in
+                   (("weights_bytes", weights.stat().st_size),
+                    ("architecture", json.loads(json.dumps(dict(architecture)))))  # as JSON holds it
+                   if card.get(key) != actual]
+    except (OSError, ValueError, AttributeError) as exc:
+        differs = [f"unreadable ({exc})"]
+    if differs:
+        warnings.warn(f"{card_file} does not describe {weights.name} ({'; '.join(differs)}): its data and figures "
+                      "are not those of the weights in use", stacklevel=3)

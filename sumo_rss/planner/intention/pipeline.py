@@ -16,14 +16,15 @@ import torch
 
 from ...errors import SumoRssError
 from ...files import atomic_path, write_json
+from ...scenario import load_scenario
 from . import dataset
-from .estimator import FORMAT, save_weights
+from .estimator import CARD_FILE, FORMAT, save_weights
 from .model import ARCHITECTURE
 from .train import TrainSettings, batches_per_epoch, evaluate, train
 
 # The highway has no branching lanes (CFB keeps the rules there), so it gives no samples unless all are recorded.
 DEFAULT_SCENARIOS = ("intersection_tls", "intersection_priority", "merge_onramp")
-WEIGHTS_FILE, CARD_FILE = "intention.pt", "intention.json"
+WEIGHTS_FILE = "intention.pt"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +69,8 @@ def train_intent(plan: DataPlan, out: Path, settings: TrainSettings = TrainSetti
     overlap = set(plan.train_seeds) & set(plan.test_seeds)
     if overlap:
         raise ValueError(f"held-out seeds must not be training seeds (both: {sorted(overlap)})")
+    for path in plan.scenarios:  # before any run: a step the samples cannot use fails every recording
+        dataset.check_step(load_scenario(path).step_s, path)
     out.mkdir(parents=True, exist_ok=True)
     runs = len(plan.scenarios) * (len(plan.train_seeds) + len(plan.test_seeds))
     with tqdm(total=runs, unit="run", desc="record", disable=not show_progress) as bar:
