@@ -565,6 +565,22 @@ def test_an_fcd_without_types_takes_each_cars_type_from_the_route_file(tmp_path)
     assert snap.length.tolist() == [3.0, 3.0, 5.0, 5.0] and snap.width.tolist() == [1.5, 1.5, 1.8, 1.8]
 
 
+def test_accelerations_from_rounded_speeds_carry_their_resolution(tmp_path):
+    """Without 'acceleration' the FCD's speeds (2 decimals here) give the accelerations, off by up to 0.01 / 0.1 s
+    = 0.1 m/s²: the snapshots say so, and the audit widens its tolerance by it. With the attribute: 0."""
+    network = RoadNetwork.from_file(HIGHWAY)
+    for with_accel, resolution in ((False, 0.1), (True, 0.0)):
+        fcd = tmp_path / "f.xml"
+        cars = [_fcd_vehicle("a", 20.0 + k, speed=f"{10.0 - 0.4 * k:.2f}") for k in range(3)]
+        text = "".join(f'<timestep time="{0.1 * k:.2f}">{car}</timestep>' for k, car in enumerate(cars))
+        fcd.write_text("<fcd-export>" + (text if with_accel else text.replace(' acceleration="0"', "")) +
+                       "</fcd-export>")
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", ".*(vType car|decimals)")
+            snaps = list(FcdReader(fcd, network))
+        assert [s.accel_resolution for s in snaps[1:]] == pytest.approx([resolution] * 2)
+
+
 def _crash_with_sumo_defaults(folder) -> tuple:
     """A follower accelerating into a braking leader, run by SUMO with its default collision action (teleport:
     the collider is moved on to the next edge in the step of the collision); returns (fcd, collisions, routes)."""

@@ -26,12 +26,12 @@ def _pair(lon_safe: bool, lat_safe: bool, v_lat_a: float = 0.0) -> PairSituation
 
 
 def _step(tracker: ResponsibilityTracker, t: float, situations: PairSituations, accel=(0.0, 0.0),
-          params: RssParams = RssParams(), keys=(PAIR,), speed=(10.0, 10.0)) -> None:
+          params: RssParams = RssParams(), keys=(PAIR,), speed=(10.0, 10.0), **extra) -> None:
     tracker.step(StepInput(time=t, keys=np.array(keys, dtype=np.int64), situations=situations,
                            ids=np.array(["a", "b"], dtype=object), uids=np.array([0, 1], dtype=np.int64),
                            vclass=np.array(["background"] * 2, dtype=object), accel=np.array(accel, dtype=float),
                            speed=np.array(speed, dtype=float), params=RssParamArrays.stack([params, params]),
-                           new_vehicle=np.zeros(2, dtype=bool)))
+                           new_vehicle=np.zeros(2, dtype=bool), **extra))
 
 
 def _rear_car_run(accels: list[float], rho: float) -> ResponsibilityTracker:
@@ -180,3 +180,19 @@ def test_after_a_contact_the_model_did_not_see_coming_no_episode_opens_while_the
     _step(tracker, 2.1, _pair(False, False))
     tracker.finish()
     assert [(e["t_b_s"], e["episode_index"]) for e in tracker.episode_records] == [(2.1, 1)]
+
+
+@pytest.mark.parametrize("tolerance, blamed", [(0.05, True), (0.15, False)])
+def test_accelerations_measured_coarsely_are_judged_within_their_resolution(tolerance, blamed):
+    """An FCD without accelerations, speeds written with 2 decimals at a 0.1 s step: a derived acceleration may be
+    off by 0.1 m/s², twice the 0.05 tolerance. A rear car read at −3.9 m/s² where b_min = 4 is owed (excess 0.1) is
+    within that resolution: not a violation there; with exact accelerations it is."""
+    tracker = ResponsibilityTracker()
+    p = RssParams(response_time=0.1)
+    _step(tracker, 0.0, _pair(True, False), params=p)
+    _step(tracker, 0.1, _pair(False, False), params=p)
+    for k in range(2, 5):
+        _step(tracker, round(k * 0.1, 10), _pair(False, False), accel=(-3.9, 0.0), params=p,
+              accel_tolerance=tolerance)
+    tracker.finish()
+    assert (tracker.episode_records[0]["responsible"] == "a") == blamed

@@ -18,7 +18,7 @@ from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
-from .responsibility import AREA_KEY, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
+from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
@@ -183,7 +183,8 @@ class Auditor:
         new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
-            vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed, params=params,
+            vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed,
+            accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=params,
             new_vehicle=new_vehicle, areas=areas,
             area_number=area_number))
         if self.trace_class is not None:

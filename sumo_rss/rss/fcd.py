@@ -347,8 +347,12 @@ class FcdReader:
                                                                       != lane)) if dt else np.zeros(len(ids), bool)
         if jumped.any():
             self._warn_lane_jumps(ids, lat_moved, jumped, dt, time)
+        accel_resolution = 0.0
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
+            # Two speeds each rounded to the file's decimals: the difference is off by up to 10^-N m/s.
+            decimals = max((_decimals(r["speed"]) for r in rows[:100]), default=FINE_DECIMALS)
+            accel_resolution = 10.0 ** -decimals / dt if dt and decimals < FINE_DECIMALS else 0.0
         if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
             # A movement within the positions' rounding is none; a car entering a new edge keeps its last speed.
             moved = np.where(np.abs(lat_moved) > (self._resolution or 0.0), lat_moved, 0.0)
@@ -371,7 +375,8 @@ class FcdReader:
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
             vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
             signals=_numbers(rows, "signals", where, integer=True, default="0"),
-            route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None)
+            route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
+            accel_resolution=accel_resolution)
 
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,

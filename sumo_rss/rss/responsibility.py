@@ -53,6 +53,7 @@ class StepInput:
     # number of the area of each row of ``situations`` (-1: a road situation).
     areas: AreaRules | None = None
     area_number: np.ndarray | None = None
+    accel_tolerance: float = EPS_ACCEL  # [m/s²] on the acceleration bounds (wider for accelerations measured coarsely)
 
 
 RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
@@ -352,7 +353,7 @@ class ResponsibilityTracker:
         bound[..., 3] = np.where(e.lat_settled, 0.0,
                                  lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars]))
         e.lat_settled = e.lat_settled | (judged[:, None] & (tau >= rho - TIME_EPS) & (u <= 0.0))
-        tolerance = np.full(actual.shape, EPS_ACCEL)
+        tolerance = np.full(actual.shape, step.accel_tolerance)
         # The velocity envelope's tolerance: the acceleration tolerance integrated while the envelope changes,
         # up to when it reaches 0; from then on "stay ≤ 0" does not loosen with time.
         settles = rho + np.maximum(e.u0 + p.lat_accel_max[cars] * rho, 0.0) / p.lat_brake_min[cars]

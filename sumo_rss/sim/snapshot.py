@@ -56,6 +56,9 @@ class WorldSnapshot:
     route_index: np.ndarray  # int
     route_edges: tuple[tuple[str, ...], ...] | None = None
     tls_states: dict[str, str] | None = None  # signal id → SUMO state string (one character per link index)
+    # [m/s²] how far ``accel`` may be off by how it was measured (from speeds an FCD wrote with few decimals); the
+    # audit widens its acceleration tolerance by it
+    accel_resolution: float = 0.0
 
     def __len__(self) -> int:
         return int(self.ids.shape[0])
