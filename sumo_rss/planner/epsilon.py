@@ -423,10 +423,10 @@ class EpsilonPlanner:
         step = self.config.output_step
         t = np.arange(0.0, float(sim.t[-1]) + 0.5 * step, step)
         accel = np.concatenate([sim.ego_accel[r, 1:], sim.ego_accel[r, -1:]])
-        h, speed, accel = (np.interp(t, sim.t, a) for a in (sim.heading[r, :, 0], sim.speed[r, :, 0], accel))
+        v_k, h_k = sim.speed[r, :, 0], sim.heading[r, :, 0]
+        h, speed, accel = (np.interp(t, sim.t, a) for a in (h_k, v_k, accel))
         # Positions between the samples by their rates (v cos h, v sin h): linear ones disagreed with the speeds
         # by ½·a·t·(Δt − t) (−0.035 m per 0.1 s braking at 2.3 m/s² between MPDM's 0.4 s samples).
-        v_k, h_k = sim.speed[r, :, 0], sim.heading[r, :, 0]
         s = _hermite(t, sim.t, sim.s[r, :, 0], v_k * np.cos(h_k))
         d = _hermite(t, sim.t, sim.d[r, :, 0], v_k * np.sin(h_k))
         x, y, heading = frame.bumper_at(s, d, h, 0.5 * float(vehicles.length[0]))

@@ -32,6 +32,9 @@ from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSitua
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 CENTRED = 0.05  # [m] a car this close to its lane's centre line at two steps, in another lane, jumped between them
 FINE_DECIMALS = 6  # positions written with this many decimals (sumo --precision 6) give exact lateral speeds
+# What the reader remembers of a car from the step before (FcdReader._prev), and what it takes for one not seen then:
+# speed [m/s], edge, lane, lateral position in the lane (off-centre) and across the edge [m], lateral speed [m/s].
+_UNSEEN = (0.0, -1, -1, 1.0, 0.0, 0.0)
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
 STEP_TIME_TOLERANCE = 1e-6  # [s] a report at a step's time (both written with SUMO's few decimals) belongs to it
 
@@ -186,9 +189,9 @@ class FcdReader:
         self.network = network
         self.vehicles = vehicles or VehicleInfo()
         self.ego_ids = set(ego_ids)
-        # id → (speed [m/s], edge, lane, lateral position in the lane and across the edge [m], lateral speed [m/s])
-        self._prev: dict[str, tuple[float, int, int, float, float, float]] = {}
+        self._prev: dict[str, tuple[float, int, int, float, float, float]] = {}  # id → as _UNSEEN
         self._resolution: float | None = None  # [m] of a lateral position difference written with few decimals
+        self._speed_decimals: int | None = None  # of the speeds as written (for accelerations worked out from them)
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
@@ -335,29 +338,30 @@ class FcdReader:
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
-        prev = [self._prev.get(v) for v in ids]
-        seen = np.array([p is not None for p in prev], dtype=bool)
-        prev_speed = np.array([p[0] if p else 0.0 for p in prev])
-        same_edge = seen & (np.array([p[1] if p else -1 for p in prev]) == edge)
-        lat_moved = np.where(same_edge, edge_lat - np.array([p[4] if p else 0.0 for p in prev]), 0.0)  # [m]
+        seen = np.array([v in self._prev for v in ids], dtype=bool)
+        prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = np.array(
+            [self._prev.get(v, _UNSEEN) for v in ids], dtype=float).reshape(len(ids), len(_UNSEEN)).T
+        same_edge = seen & (prev_edge == edge)
+        lat_moved = np.where(same_edge, edge_lat - prev_edge_lat, 0.0)  # [m]
         # A car that moves sideways faster than any car can, or from one lane's centre line to another's, changed
         # its lane in one step (SUMO's default; at a 1 s step a lane width is only 3.5 m/s).
-        centred = same_edge & (np.abs(lat_pos) <= CENTRED) & (np.abs([p[3] if p else 1.0 for p in prev]) <= CENTRED)
-        jumped = (np.abs(lat_moved) > JUMP_SPEED * dt) | (centred & (np.array([p[2] if p else -1 for p in prev])
-                                                                      != lane)) if dt else np.zeros(len(ids), bool)
+        centred = same_edge & (np.abs(lat_pos) <= CENTRED) & (np.abs(prev_lat_pos) <= CENTRED)
+        jumped = (np.abs(lat_moved) > JUMP_SPEED * dt) | (centred & (prev_lane != lane)) if dt else \
+            np.zeros(len(ids), bool)
         if jumped.any():
             self._warn_lane_jumps(ids, lat_moved, jumped, dt, time)
         accel_resolution = 0.0
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
             # Two speeds each rounded to the file's decimals: the difference is off by up to 10^-N m/s.
-            decimals = max((_decimals(r["speed"]) for r in rows[:100]), default=FINE_DECIMALS)
+            if self._speed_decimals is None and rows:
+                self._speed_decimals = max(_decimals(r["speed"]) for r in rows[:100])
+            decimals = FINE_DECIMALS if self._speed_decimals is None else self._speed_decimals
             accel_resolution = 10.0 ** -decimals / dt if dt and decimals < FINE_DECIMALS else 0.0
         if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
             # A movement within the positions' rounding is none; a car entering a new edge keeps its last speed.
             moved = np.where(np.abs(lat_moved) > (self._resolution or 0.0), lat_moved, 0.0)
-            carried = np.array([p[5] if p else 0.0 for p in prev])
-            across = np.where(jumped, 0.0, np.where(same_edge | ~seen, moved / dt, carried)) if dt else \
+            across = np.where(jumped, 0.0, np.where(same_edge | ~seen, moved / dt, prev_lat_speed)) if dt else \
                 np.zeros(len(ids))
             # SUMO's speedLat is the car's own (+ = left of its travel); a car overtaking through the oncoming lane
             # has its posLat in that lane's frame, so its movement there is the other way round.
