@@ -12,6 +12,8 @@ import sumolib
 
 from conftest import NETWORKS
 from sumo_rss.road.build import build_network, network_dirs, without_generator_header
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.sumo_home import sumo_tool
 
 NAMES = ["highway", "merge", "intersection_tls", "intersection_priority"]
 
@@ -45,6 +47,23 @@ def test_highway_three_lanes_over_two_km_with_one_gentle_curve():
 
     assert heading("hw2_1") - heading("hw0_1") == pytest.approx(25.0, abs=0.01)
     assert net.getEdge("hw1").getLength() == pytest.approx(2000.0 * math.radians(25.0), rel=0.01)
+
+
+def test_lanes_beside_a_dead_ends_turnaround_do_not_end(tmp_path):
+    """netconvert's default turnaround at a dead end connects only the leftmost lane to the opposite edge; the
+    other lanes lead nowhere there but do not end as an acceleration lane does (every pair of cars beside each other
+    on them was audited as a merge). The merge's acceleration lane still ends."""
+    (tmp_path / "r.nod.xml").write_text('<nodes><node id="A" x="0" y="0"/><node id="C" x="2000" y="0"/></nodes>')
+    (tmp_path / "r.edg.xml").write_text('<edges><edge id="AC" from="A" to="C" numLanes="2" speed="25"/>'
+                                        '<edge id="CA" from="C" to="A" numLanes="2" speed="25"/></edges>')
+    subprocess.run([str(sumo_tool("netconvert")), "-n", str(tmp_path / "r.nod.xml"), "-e", str(tmp_path / "r.edg.xml"),
+                    "-o", str(tmp_path / "r.net.xml")], check=True, capture_output=True)
+    road = RoadNetwork.from_file(tmp_path / "r.net.xml")
+    turnarounds = sumolib.net.readNet(str(tmp_path / "r.net.xml")).getLane("AC_1").getOutgoing()
+    assert [c.getDirection() for c in turnarounds] == ["t"]  # the network has what this test is about
+    assert not road.lane_ends.any()
+    merge = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    assert merge.lane_ids[merge.lane_ends].tolist() == ["mw_merge_0"]
 
 
 def test_merge_acceleration_lane_ends_and_ramp_feeds_it():

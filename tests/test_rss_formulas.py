@@ -80,6 +80,18 @@ def test_min_safe_speed_ahead_and_interval():
     assert high == np.inf and low == pytest.approx(v)
 
 
+def test_no_speed_ahead_is_safe_within_the_rear_cars_min_gap():
+    # d_min = max(0, D_rear − v²/(2·b_max)) + λ_rear: however fast the front car goes, a gap below λ_rear (1 m,
+    # the mobileye_human preset's) stays unsafe, so there is no smallest safe speed (+inf, an empty interval).
+    rear = RssParams(min_lon_gap=1.0)
+    assert min_safe_speed_ahead(0.5, 10.0, AD_RSS, rear) == np.inf
+    low, high = safe_speed_interval_same_dir(np.inf, 0.0, AD_RSS, 0.5, 10.0, rear, AD_RSS)
+    assert low == np.inf and high == np.inf
+    # Just above λ_rear the root is finite again, and a little faster than it is safe.
+    v = min_safe_speed_ahead(1.5, 10.0, AD_RSS, rear)
+    assert np.isfinite(v) and lon_safe_distance_same_dir(10.0, v + 0.01, rear, AD_RSS) < 1.5
+
+
 def test_arrays_of_parameters_broadcast_like_scalars():
     params = [RssParams(), RssParams(response_time=2.0), RssParams(lon_brake_max=6.0)]
     table = RssParamArrays.stack(params)

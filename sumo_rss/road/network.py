@@ -46,7 +46,8 @@ class RoadNetwork:
     lane_left: np.ndarray
     lane_right: np.ndarray
     lane_successors: tuple[tuple[int, ...], ...]
-    lane_ends: np.ndarray  # a normal lane without successors on an edge that goes on (e.g. an acceleration lane)
+    lane_ends: np.ndarray  # a normal lane without successors on an edge that goes on other than by a turnaround
+    # (e.g. an acceleration lane)
     shapes: LaneShapes
     edge_ids: np.ndarray
     edge_internal: np.ndarray
@@ -84,13 +85,14 @@ class RoadNetwork:
                 if i + 1 < len(edge_lanes):
                     left[k] = lane_idx[edge_lanes[i + 1].getID()]
 
-        successors = []
+        successors, onward = [], []  # onward: the lane has a successor other than a turnaround
         for lane in lanes:
             nxt = []
             for c in lane.getOutgoing():
                 via = c.getViaLaneID()
                 nxt.append(lane_idx[via] if via else lane_idx[c.getToLane().getID()])
             successors.append(tuple(sorted(set(nxt))))
+            onward.append(any(c.getDirection() != "t" for c in lane.getOutgoing()))
 
         edge_length = np.array([max(lane.getLength() for lane in e.getLanes()) for e in edges])
         opposite = np.full(len(edges), -1)
@@ -104,7 +106,11 @@ class RoadNetwork:
         for k, nxt in enumerate(successors):
             edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt)
         lane_ids = np.array([lane.getID() for lane in lanes], dtype=str)
-        edge_goes_on = [bool(succ) for succ in edge_succ]
+        # A lane ends (an acceleration lane, a lane drop) where it leads nowhere while its edge goes on. A turnaround
+        # does not make the edge go on: netconvert connects only the leftmost lane of a dead end to the opposite
+        # edge, and its other lanes do not end there (each pair of cars beside each other would be a merge).
+        edge_goes_on = np.zeros(len(edges), dtype=bool)
+        edge_goes_on[lane_edge[np.flatnonzero(onward)]] = True
         lane_ends = np.array([not successors[k] and e.getFunction() != "internal" and edge_goes_on[lane_edge[k]]
                               for k, e in enumerate(lane.getEdge() for lane in lanes)])
         return cls(

@@ -189,6 +189,7 @@ def min_safe_speed_ahead(gap: Any, v_rear: Any, p_self: Any, p_rear: Any) -> np.
     """Smallest own speed [m/s] that keeps ``gap`` [m] to a rear car at ``v_rear`` safe (same direction).
 
     Solves D_rear(v_rear) − v²/(2·b_max,self) + λ_rear ≤ gap:  v = sqrt(max(0, 2·b_max·(D_rear + λ_rear − gap))).
+    Returns +inf where no speed is safe: d_min = max(0, ·) + λ_rear, so a gap below λ_rear is never enough.
     """
     return min_safe_speed_ahead_of_reach(gap, lon_reach(v_rear, p_rear, p_rear.lon_brake_min), p_rear.min_lon_gap,
                                          p_self.lon_brake_max)
@@ -197,8 +198,9 @@ def min_safe_speed_ahead(gap: Any, v_rear: Any, p_self: Any, p_rear: Any) -> np.
 def min_safe_speed_ahead_of_reach(gap: Any, rear_reach: Any, rear_min_gap: Any, brake_max: Any) -> np.ndarray:
     """:func:`min_safe_speed_ahead` from the rear car's reach D_rear [m] (:func:`lon_reach` at b_min), its λ [m]
     and the own b_max [m/s²]."""
-    need = np.asarray(rear_reach) + rear_min_gap - np.asarray(gap, dtype=float)
-    return np.sqrt(np.maximum(2.0 * brake_max * need, 0.0))
+    gap = np.asarray(gap, dtype=float)
+    need = np.asarray(rear_reach) + rear_min_gap - gap
+    return np.where(gap < rear_min_gap, np.inf, np.sqrt(np.maximum(2.0 * brake_max * need, 0.0)))
 
 
 def safe_speed_interval_same_dir(gap_front: Any, v_front: Any, p_front: Any, gap_rear: Any, v_rear: Any,
