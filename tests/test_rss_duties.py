@@ -1,11 +1,12 @@
-"""The response owed at an intersection's danger threshold (rss.md §5), from what held at the step before."""
+"""The response owed at the danger threshold (rss.md §5), from what held at the step before: at intersections,
+and on roads for pairs first seen dangerous."""
 from __future__ import annotations
 
 import numpy as np
 
 from sumo_rss.rss.duties import duties_at_threshold
-from sumo_rss.rss.situations import (FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP,
-                                     PairSituations)
+from sumo_rss.rss.situations import (FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_LON,
+                                     RULE_NO_OVERLAP, PairSituations)
 
 
 def _dangerous_crossings(priority: list[int], in_front: list[int]) -> PairSituations:
@@ -54,3 +55,26 @@ def test_who_yields_follows_the_priority_under_which_able_to_stop_held():
     first_seen = duties_at_threshold(sit, np.arange(1), np.zeros(1, dtype=np.int8), np.array([2], dtype=np.int8),
                                      np.zeros(1, dtype=bool), np.ones(1, dtype=bool))
     assert first_seen.trigger.tolist() == ["appeared"]  # no step before: nothing to take a priority from
+
+
+def test_a_road_pair_first_seen_dangerous_owes_by_its_overlap():
+    """rss.md §5: a pair that appears already dangerous owes the longitudinal response unless the cars overlap
+    longitudinally, then the lateral one; also when neither car is new but the two were no road situation at the
+    step before (a ramp car reaching the motorway's edge beside a car: on unrelated edges until then). It was
+    taken as longitudinally safe before, and the car a few metres behind, side by side, was blamed for not
+    braking."""
+    n = 3
+    zeros, false = np.zeros(n), np.zeros(n, dtype=bool)
+    sit = PairSituations(
+        a=np.arange(0, 2 * n, 2), b=np.arange(1, 2 * n, 2), kind=np.zeros(n, dtype=int), a_is_rear=np.ones(n, bool),
+        a_is_left=false, lon_gap=np.array([-2.5, 8.0, -2.5]), lat_gap=np.full(n, 0.1), v_lon_a=zeros,
+        v_lon_b=zeros, v_lat_a=zeros, v_lat_b=zeros, lon_d_min=np.full(n, 65.0), lat_d_min=np.full(n, 0.35),
+        lon_safe=false, lat_safe=false, rules=np.zeros(n, dtype=np.int8))
+    seen, appeared = np.array([False, False, True]), np.zeros(n, dtype=bool)
+    duties = duties_at_threshold(sit, np.arange(n), np.array([0, 0, RULE_LON], dtype=np.int8),
+                                 np.zeros(n, dtype=np.int8), seen, appeared)
+    assert duties.trigger.tolist() == ["first-seen", "first-seen", "lon"]
+    assert [tuple(row) for row in duties.owed] == [("lat:brake", "lat:brake"),
+                                                   ("lon:brake-min", "lon:brake-at-most-max"),
+                                                   ("lon:brake-min", "lon:brake-at-most-max")]
+    assert duties.owed_lat.tolist() == [True, False, False]

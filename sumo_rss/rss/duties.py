@@ -3,8 +3,9 @@ safe at the step before t_b.
 
 Roads: lateral safe before → a lateral response by both; longitudinal safe before → a longitudinal one (the rear
 car brakes at b_min, the front car must not brake harder than b_max; opposite directions: both brake at b_corr);
-both safe → both responses; a pair that appears already dangerous owes the longitudinal response unless the
-cars overlap longitudinally, then the lateral one.
+both safe → both responses; a pair that appears already dangerous (a car entered the data, or the two cars were
+no road situation at the previous step: a ramp car reaching the motorway's edge beside a car) owes the
+longitudinal response unless the cars overlap longitudinally, then the lateral one.
 Intersections: able-to-stop held → the car(s) without priority under that step's priority brake (a signal that
 changes at t_b does not turn the car that was allowed through into the one that yields), a priority car may
 drive on; in-front held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap,
@@ -62,12 +63,14 @@ def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.nd
 
 def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, seen: np.ndarray,
                  appeared: np.ndarray) -> Duties:
-    # A pair that was no candidate at the previous step was far apart: longitudinally safe.
-    prev_lon = np.where(seen, (prev_rules & RULE_LON) > 0, True)
-    prev_lat = np.where(seen, (prev_rules & RULE_LAT) > 0, False)
+    # A pair that was no road situation at the previous step (a car new in the data; cars far apart, on unrelated
+    # edges, or in a crossing situation then) appears dangerous: what was safe before is unknown, so the overlap
+    # decides (rss.md §5). Cars that were far apart do not overlap: the longitudinal response, as it was safe.
+    prev_lon = (prev_rules & RULE_LON) > 0
+    prev_lat = (prev_rules & RULE_LAT) > 0
     overlap = sit.lon_gap[rows] < 0.0
-    owed_lon = np.where(appeared, ~overlap, prev_lon)
-    owed_lat = np.where(appeared, overlap, prev_lat)
+    owed_lon = np.where(seen, prev_lon, ~overlap)
+    owed_lat = np.where(seen, prev_lat, overlap)
     same = np.isin(sit.kind[rows], SAME_DIRECTION_CODES)
     a_rear = sit.a_is_rear[rows]
     rear = np.column_stack([a_rear, ~a_rear])
@@ -84,7 +87,8 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
     lat_role = np.column_stack([np.where(a_left, "left", "right"), np.where(a_left, "right", "left")])
     roles = _join(np.where(owed_lon[:, None], lon_role, ""), np.where(owed_lat[:, None], lat_role, ""))
     owed = _join(np.where(owed_lon[:, None], lon_owed, ""), np.where(owed_lat[:, None], "lat:brake", ""))
-    trigger = np.where(appeared, "appeared", np.where(owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat")))
+    trigger = np.where(appeared, "appeared", np.where(~seen, "first-seen", np.where(
+        owed_lon & owed_lat, "both", np.where(owed_lon, "lon", "lat"))))
     return Duties(must_brake, front_limited, brake_correct, owed_lat, trigger.astype(object), roles, owed)
 
 
