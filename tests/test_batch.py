@@ -2,11 +2,13 @@
 the same results, and the report plots exactly what the CSVs say."""
 from __future__ import annotations
 
+import fcntl
 import json
 import multiprocessing
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -15,11 +17,11 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
-from conftest import REPO, write_scenario
+from conftest import REPO, SCENARIOS, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
 from sumo_rss.batch.orchestrator import _BatchLock, run_batch
-from sumo_rss.batch.runner import run_one
+from sumo_rss.batch.runner import WRITER_LOCK, run_one
 from sumo_rss.batch.spec import BatchSpec, Task, load_batch, parse_seeds
 from sumo_rss.errors import ScenarioError, SumoRssError
 from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
@@ -90,16 +92,20 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
 
 def test_a_batch_removes_only_its_own_half_written_runs(two_scenarios, tmp_path):
     """A batch cleans up what a killed batch left of its own runs; other ``.partial`` folders below its output
-    folder may be runs in progress of another batch or 'sumo-rss run', which it must not delete."""
+    folder may be runs in progress of another batch, and a partial folder of its own run may be that of a 'sumo-rss
+    run' in progress (it holds the folder's writer lock), which it must not delete."""
     out = tmp_path / "out"
-    own, foreign, sibling = out / "light" / ".0.k1ll3d.partial", out / "other" / ".0.busy.partial", \
-        out / "light" / ".10.busy.partial"
-    for folder in (own, foreign, sibling):
+    own, foreign, sibling, live = out / "light" / ".0.k1ll3d.partial", out / "other" / ".0.busy.partial", \
+        out / "light" / ".10.busy.partial", out / "light" / ".0.running.partial"
+    for folder in (own, foreign, sibling, live):
         folder.mkdir(parents=True)
+    (own / WRITER_LOCK).touch()  # its process died: the lock is free
     task = Task(load_scenario(two_scenarios / "light.toml").with_overrides(seed=0), "")
-    rows = run_batch([task], out, LocalExecutor(workers=1), progress=False)
+    with (live / WRITER_LOCK).open("w") as writer:  # a 'sumo-rss run' of the same run, writing its folder
+        fcntl.flock(writer, fcntl.LOCK_EX)
+        rows = run_batch([task], out, LocalExecutor(workers=1), progress=False)
     assert list(rows.status) == ["ok"]
-    assert not own.exists() and foreign.is_dir() and sibling.is_dir()
+    assert not own.exists() and foreign.is_dir() and sibling.is_dir() and live.is_dir()
 
 
 def test_a_run_whose_folder_is_removed_meanwhile_fails_instead_of_reporting_ok(two_scenarios, tmp_path):
@@ -231,6 +237,19 @@ def test_ray_runs_the_same_tasks_with_the_same_results(two_scenarios, tmp_path):
                 (tmp_path / "local" / task.run_id / name).read_bytes()
 
 
+def test_a_ray_address_where_nothing_listens_fails_at_once(tmp_path):
+    """Ray retries an address without a cluster for ever; the batch says so in one line and exits 2 instead."""
+    pytest.importorskip("ray")
+    with socket.socket() as probe:  # a port that was free a moment ago: nothing listens there
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    proc = _cli("batch", str(SCENARIOS / "highway_sparse.toml"), "--seeds", "0", "--ray-address", f"127.0.0.1:{port}",
+                "--out", str(tmp_path / "out"), timeout=120)
+    assert proc.returncode == 2
+    assert f"--ray-address 127.0.0.1:{port}: no Ray cluster listens there" in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_grid_variants_sweep_presets_and_demand(two_scenarios, tmp_path):
     (two_scenarios / "grid.toml").write_text('[batch]\nscenarios = ["busy.toml"]\nseeds = [3]\n'
                                              '[batch.grid]\nrss_preset = ["ad_rss", "krauss"]\n'
@@ -334,17 +353,21 @@ def _default_sigint() -> None:
 
 @pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
 def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path, stop):
-    """Ctrl-C, or SIGTERM as a job scheduler or timeout sends it."""
+    """Ctrl-C (a terminal sends SIGINT to the batch and its workers: the whole process group), or SIGTERM as a job
+    scheduler or timeout sends it (to the batch). The workers stop quietly: each printed its traceback."""
     out = tmp_path / "out"
     parent = subprocess.Popen([sys.executable, "-m", "sumo_rss", "batch", str(two_scenarios / "batch.toml"),
                                "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
+                              stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint, start_new_session=True)
     deadline = time.time() + 120
     while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
         time.sleep(0.05)
-    parent.send_signal(stop)
+    if stop == signal.SIGINT:
+        os.killpg(parent.pid, stop)
+    else:
+        parent.send_signal(stop)
     _, err = parent.communicate(timeout=60)
-    assert parent.returncode == 130 and "interrupted" in err
+    assert parent.returncode == 130 and "interrupted" in err and "Traceback" not in err
     assert not list(out.glob("**/.*.partial")) and not (out / ".batch.lock").exists()
     summary = read_batch_csv(out, "batch_summary")
     assert (summary.status == "ok").sum() >= 1 and set(summary.status) <= {"ok", "missing"}
@@ -399,15 +422,19 @@ def test_the_batch_lock_is_exclusive_and_a_left_over_lock_file_is_taken_over(tmp
         pass
 
 
-def test_a_finished_run_with_a_damaged_summary_is_run_again(two_scenarios, tmp_path):
+@pytest.mark.parametrize("damaged, content", [("summary.json", '{"run_id": '), ("summary.json", "[]"),
+                                              ("summary.json", "{}"), ("manifest.json", "[]")])
+def test_a_finished_run_with_a_damaged_summary_is_run_again(two_scenarios, tmp_path, damaged, content):
+    """Cut short, or valid JSON that is not what a finished run writes: run again (a JSON list was a traceback, an
+    empty object a finished run with an empty status, reported as failed at every rerun)."""
     tasks = load_batch(two_scenarios / "batch.toml").tasks()[:1]
     out = tmp_path / "out"
     run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
-    summary = out / tasks[0].run_id / "summary.json"
-    summary.write_text('{"run_id": ')
+    (out / tasks[0].run_id / damaged).write_text(content)
     with pytest.warns(UserWarning, match="other scenario parameters or are damaged"):
         rows = run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
-    assert rows.status.tolist() == ["ok"] and json.loads(summary.read_text())["status"] == "ok"
+    assert rows.status.tolist() == ["ok"]
+    assert json.loads((out / tasks[0].run_id / "summary.json").read_text())["status"] == "ok"
 
 
 def _kill_itself() -> None:
@@ -454,10 +481,13 @@ def test_the_ego_speed_plot_takes_the_lowest_seed_whose_ego_was_on_the_road(tmp_
 
 def test_the_runs_table_prints_three_decimals_also_next_to_a_failed_run(tmp_path):
     """A failed run's empty cells made the number columns text, printed with all their decimals."""
-    summary = pd.DataFrame({"run_id": ["hw/0", "hw/1"], "status": ["ok", "failed"],
-                            "real_time_factor": ["13.456789", ""], "error": ["", "Traceback ..."]})
+    summary = pd.DataFrame({"run_id": ["hw/0", "hw/1"], "variant": ["", ""], "status": ["ok", "failed"],
+                            "real_time_factor": ["13.456789", ""], "episodes": ["400", ""],
+                            "steps": pd.array([3000, None], dtype="Int64"), "error": ["", "Traceback ..."]})
     shown = _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}", na_rep="")
     assert "13.457" in shown and "13.456789" not in shown and "Traceback ..." in shown
+    # Empty cells stay empty (an all-empty text column, and whole numbers beside a failed run were '<NA>').
+    assert "NA" not in shown and "<td>400</td>" in shown and "<td>3000</td>" in shown
 
 
 def test_report_names_an_emptied_audit_csv_of_the_batch(tmp_path):

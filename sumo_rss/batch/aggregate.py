@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..files import write_csv
+from ..files import read_json_object, write_csv
 from .executors import FAILED_FILE, failure_directory
 from .runner import SUMMARY_FILE, run_directory
 from .spec import Task
@@ -24,7 +24,9 @@ def summary_row(out_dir: Path, task: Task) -> dict:
     base = {"run_id": task.run_id, "scenario": task.spec.name, "variant": task.variant, "seed": task.spec.seed}
     summary = run_directory(out_dir, task) / SUMMARY_FILE
     if summary.is_file():
-        data = json.loads(summary.read_text(encoding="utf-8"))
+        data = read_json_object(summary)
+        if data is None:
+            return base | {"status": "failed", "error": f"{summary}: damaged (not a JSON object)"}
         return base | {k: data.get(k) for k in SUMMARY_COLUMNS if k not in base and k != "error"} | {"error": ""}
     failed = failure_directory(out_dir, task) / FAILED_FILE
     if failed.is_file():

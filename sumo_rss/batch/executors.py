@@ -13,6 +13,7 @@ import multiprocessing as mp
 import os
 import shutil
 import signal
+import socket
 import sys
 import traceback
 from collections import deque
@@ -28,6 +29,7 @@ from .runner import SUMMARY_FILE, run_directory, run_one
 from .spec import Task
 
 FAILED_FILE = "failed.json"
+CONNECT_TIMEOUT_S = 5.0  # [s] for a Ray cluster's address to answer
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,9 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _child(task: Task, out_dir: str, started: Any, parent: int) -> None:
+    # Ctrl-C reaches the whole process group: the batch stops its workers (each printed a KeyboardInterrupt
+    # traceback when it stopped itself).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
     started.set()
     outcome = execute(task, out_dir)
@@ -142,11 +147,16 @@ class RayExecutor:
             raise SumoRssError("--ray-address needs Ray: pip install 'sumo-rss[ray]'") from None
         self.address = address
         if not ray.is_initialized():
+            _check_listening(address)
             try:
                 ray.init(address=None if address == "local" else address, log_to_driver=False)
-            except ConnectionError as exc:  # no cluster at that address: a one-line error, not Ray's traceback
-                raise SumoRssError(f"--ray-address {address}: no Ray cluster to connect to ({exc}); start one "
-                                   "with 'ray start --head', or use 'local'") from None
+            except ConnectionError as exc:  # a one-line error, not Ray's traceback
+                if address in ("auto", "local"):
+                    raise SumoRssError(f"--ray-address {address}: no Ray cluster to connect to ({exc}); start one "
+                                       "with 'ray start --head', or use 'local'") from None
+                # Something listens there (checked above) but refused or did not answer as a Ray cluster.
+                raise SumoRssError(f"--ray-address {address}: the Ray cluster there refused the connection or did "
+                                   f"not answer ({exc})") from None
 
     def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
         import ray
@@ -165,3 +175,16 @@ class RayExecutor:
             for future in futures:
                 ray.cancel(future, force=True)
             raise
+
+
+def _check_listening(address: str) -> None:
+    """For a 'host:port' address, that something listens there: Ray itself retries an address without a cluster
+    for ever (every 40 s, 'Failed to connect to GCS')."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        return  # 'auto', 'local' or a form Ray resolves itself
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise SumoRssError(f"--ray-address {address}: no Ray cluster listens there ({exc}); start one with "
+                           "'ray start --head', or use 'local'") from None

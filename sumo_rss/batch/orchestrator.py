@@ -7,7 +7,6 @@ process left behind for the batch's own runs (only those: another batch may be w
 from __future__ import annotations
 
 import fcntl
-import json
 import os
 import shutil
 import sys
@@ -20,9 +19,10 @@ import pandas as pd
 from tqdm import tqdm
 
 from ..errors import SumoRssError
+from ..files import read_json_object
 from .aggregate import write_batch_outputs
 from .executors import LocalExecutor, Outcome, RayExecutor
-from .runner import MANIFEST_FILE, SUMMARY_FILE, run_directory
+from .runner import MANIFEST_FILE, SUMMARY_FILE, partial_run_is_live, run_directory
 from .spec import Task
 
 LOCK_FILE = ".batch.lock"
@@ -69,14 +69,11 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
 def _finished(out_dir: Path, task: Task) -> bool:
     """Whether ``task``'s run folder holds a complete run of the same resolved scenario (the parameter hash of its
     manifest matches): a scenario changed since is run again, not reported from the old run; so is a run whose
-    summary or manifest cannot be read (damaged)."""
+    summary or manifest cannot be read, or is not what a finished run writes (damaged)."""
     folder = run_directory(out_dir, task)
-    if not (folder / SUMMARY_FILE).is_file():
-        return False
-    try:
-        manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
-        json.loads((folder / SUMMARY_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    manifest, summary = read_json_object(folder / MANIFEST_FILE), read_json_object(folder / SUMMARY_FILE)
+    if manifest is None or summary is None or summary.get("status") != "ok" or \
+            summary.get("run_id") != task.run_id:
         return False
     return manifest.get("parameter_hash") == task.parameter_hash()
 
@@ -126,8 +123,10 @@ class _BatchLock:
 
 def _remove_partial_runs(out_dir: Path, tasks: list[Task]) -> None:
     """Remove the half-written folders of ``tasks``' runs (``<scenario folder>/.<seed>.*.partial``, see
-    :func:`run_one`); only safe while holding the batch lock. Other ``.partial`` folders below ``out_dir`` may be
-    runs of another batch or ``sumo-rss run`` in progress, and are left alone."""
+    :func:`run_one`) whose process has died (a live run holds its folder's writer lock: a ``sumo-rss run`` of the
+    same run may be writing there); only safe while holding the batch lock. Other ``.partial`` folders below
+    ``out_dir`` may be runs of another batch in progress, and are left alone."""
     for folder in {run_directory(out_dir, t) for t in tasks}:
         for partial in folder.parent.glob(f".{folder.name}.*.partial"):
-            shutil.rmtree(partial, ignore_errors=True)
+            if not partial_run_is_live(partial):
+                shutil.rmtree(partial, ignore_errors=True)

@@ -7,6 +7,7 @@ ego's episodes step by step), the resolved ``scenario.toml``, the SUMO inputs/ou
 from __future__ import annotations
 
 import csv
+import fcntl
 import os
 import platform
 import shutil
@@ -36,6 +37,7 @@ from .spec import Task
 SUMMARY_FILE = "summary.json"
 PLANNER_FILE = "planner.json"
 MANIFEST_FILE = "manifest.json"
+WRITER_LOCK = ".writer.lock"  # in a run's partial folder: locked (flock) while the run's process writes the folder
 EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lane_pos_m", "lat_pos_m")
 
 
@@ -128,6 +130,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     final = run_directory(out_dir, task)
     final.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
+    writer = (work / WRITER_LOCK).open("w")
+    fcntl.flock(writer, fcntl.LOCK_EX)  # a batch cleaning up dead runs' partial folders leaves this one alone
     os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared Ray folder
     try:
         scenario_text = tomli_w.dumps(spec.to_toml_data())
@@ -189,11 +193,28 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             collision_events=[asdict(c) for c in session.collisions], versions=manifest["versions"],
             planner=planner)
         write_json(work / SUMMARY_FILE, asdict(summary))
+        (work / WRITER_LOCK).unlink()  # still locked until closed below: the folder is not dead meanwhile
         _replace_dir(work, final)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
+    finally:
+        writer.close()
     return summary
+
+
+def partial_run_is_live(partial: Path) -> bool:
+    """Whether a run's process is still writing the ``.partial`` folder (it holds the folder's writer lock)."""
+    try:
+        fh = (partial / WRITER_LOCK).open("r")
+    except OSError:  # no lock file: its run died before it took the lock, or the folder is gone
+        return False
+    with fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+    return False
 
 
 def _ego_driver(spec: ScenarioSpec, network: RoadNetwork, resolver: ParamResolver):

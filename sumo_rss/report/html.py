@@ -127,11 +127,18 @@ def _numbers_as_numbers(table: pd.DataFrame) -> pd.DataFrame:
     cells made its column text, printed with all 6 decimals. Whole numbers as written (no '.', no exponent: counts)
     stay whole (a float column would print 400 as 400.000)."""
     def column(values: pd.Series) -> pd.Series:
-        if pd.api.types.is_numeric_dtype(values) or pd.api.types.is_bool_dtype(values):
+        if pd.api.types.is_bool_dtype(values):
             return values
-        written = values[values != ""].astype(str)
-        numbers = pd.to_numeric(values.where(values != ""), errors="coerce")
-        if numbers.notna().sum() != written.size:
-            return values
-        return numbers.astype("Int64") if written.str.fullmatch(r"-?\d+").all() else numbers
+        if pd.api.types.is_numeric_dtype(values):
+            numbers, whole = values, pd.api.types.is_integer_dtype(values)
+        else:
+            written = values[values != ""].astype(str)
+            numbers = pd.to_numeric(values.where(values != ""), errors="coerce")
+            if written.empty or numbers.notna().sum() != written.size:  # all empty (e.g. 'variant'), or text
+                return values
+            whole = bool(written.str.fullmatch(r"-?\d+").all())
+        if not whole or numbers.notna().all():
+            return numbers.astype("Int64") if whole else numbers
+        # Whole numbers with empty cells: pandas prints a nullable integer's NA as '<NA>' whatever na_rep says.
+        return numbers.astype("Int64").astype(object).where(numbers.notna(), "")
     return table.apply(column)
