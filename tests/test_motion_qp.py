@@ -207,6 +207,22 @@ def test_low_speed_primitive_moves_sideways_only_while_it_moves_forward():
     assert still.any() and np.all(np.diff(d)[still] == 0.0) and np.all(vd[vs == 0.0] == 0.0)
 
 
+def test_low_speed_primitive_keeps_its_heading_while_creeping_over_a_standing_piece():
+    """The behaviour layer stops the ego angled 19.7° into a gap at the end of an acceleration lane (2.3 mm on, then
+    standing); the first s(t) quintic overshoots that knot at ~0.11 m/s into the standing pieces. Their lateral
+    slope was 0, so the heading from (ṡ, ḋ) snapped to the frame's axis in one 0.1 s step and the front bumper
+    swung 0.79 m sideways (merge_onramp, demand 0.5, seed 0, 83.6 s)."""
+    t = np.round(np.arange(0.0, 3.0 + 1e-9, 0.1), 10)
+    slope = np.tan(np.radians(19.68))
+    motion = np.array([[200.0, 0.151, -0.24]] + [[200.0023, 0.0, 0.0]] * 3)
+    path = np.array([[0.4241, slope, 0.0]] * 4)
+    s, d, vs, vd, _, _ = low_speed_primitive(t, np.array([1.0, 2.0, 3.0]), motion, path)
+    moving = vs > 0.05
+    assert np.any(moving[1:]) and np.any(s > 200.0023 + 0.01)  # it creeps past the knot: what this test is about
+    np.testing.assert_allclose(np.degrees(np.arctan2(vd[moving], vs[moving])), 19.68, atol=1e-6)
+    assert np.allclose(d, 0.4241)
+
+
 def test_low_speed_primitive_keeps_the_behaviour_timing_and_path():
     # The ego waits 2 s at the end of an acceleration lane, then accelerates (jerk 1 m/s³) along a path that
     # bends left with constant d'' = 0.2 /m (a circle-like arc: d = 0.1 Δs²).

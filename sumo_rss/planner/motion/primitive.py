@@ -71,8 +71,8 @@ def low_speed_primitive(t: np.ndarray, t_knots: np.ndarray, motion: np.ndarray,
     d_now = float(path[0, 0])
     for k in range(len(t_knots)):
         on, length = on_piece == k, at[k + 1] - at[k]
-        if length <= STANDING:
-            d[on] = d_now
+        if length <= STANDING:  # s may still creep over it (a quintic overshooting a knot): along the heading
+            d[on], slope[on] = d_now, path[k, 1]  # the car stopped with, not turning to the frame's axis
             continue
         c = quintic(d_now, path[k, 1], path[k, 2], path[k + 1, 0], path[k + 1, 1], path[k + 1, 2], length)
         d[on], slope[on], bend[on] = _derivatives(c, np.clip(s[on] - at[k], 0.0, length))
