@@ -284,6 +284,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     out = args.out or Path("results") / args.specs[0].stem
     signal.signal(signal.SIGTERM, _interrupt)  # a scheduler's or timeout's stop: as Ctrl-C, finished runs are kept
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)
+    signal.signal(signal.SIGTERM, _interrupt)  # again: ray.init installs a handler of its own (exit code 15)
     rows = run_batch(tasks, out, executor, progress=not args.quiet)
     failed = int((rows.status != "ok").sum())
     print(f"{len(rows) - failed} runs ok, {failed} failed -> {out / 'batch_summary.csv'}")

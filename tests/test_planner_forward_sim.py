@@ -282,12 +282,14 @@ def test_a_change_under_way_is_not_held_half_way_when_the_rear_car_closes_in(hig
     assert sim.barrier_steps[0] == 0 and sim.d[0, -1, 0] > 3.0
 
 
-@pytest.mark.parametrize("rear_gap", [100.0, 200.0])
+@pytest.mark.parametrize("rear_gap", [-2.0, 100.0, 200.0])
 def test_the_evasive_speed_up_accelerates_beyond_the_comfort_limit_only_before_an_rss_unsafe_rear_car(highway,
                                                                                                        rear_gap):
     """epsilon.md §3.6: with the gap's rear car RSS-unsafe (100 m behind at 30 m/s; it needs 147 m behind the
     20 m/s ego) the ego speeds up into the gap at up to 2 m/s² (the jerk limit, 3 m/s³, ramps it up), although its
-    desired speed is its own speed; beside a safe gap (200 m) it keeps to its 1 m/s² limit and its speed."""
+    desired speed is its own speed; beside a safe gap (200 m) it keeps to its 1 m/s² limit and its speed. Also
+    with the rear car beside it (a gap of -2 m, below λ: no speed is safe yet; the speed-up was lost when the
+    smallest safe speed ahead became +inf there)."""
     _, frame = highway
     p = RssParams()
     vehicles = Vehicles(np.array([200.0, 200.0 - 4.5 - rear_gap]), np.array([1.0, 3.5]), np.array([0.05, 0.0]),

@@ -38,6 +38,7 @@ SUMMARY_FILE = "summary.json"
 PLANNER_FILE = "planner.json"
 MANIFEST_FILE = "manifest.json"
 WRITER_LOCK = ".writer.lock"  # in a run's partial folder: locked (flock) while the run's process writes the folder
+NEW_PARTIAL_S = 60.0  # [s] a partial folder younger than this without a writer lock may be a run just starting
 EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lane_pos_m", "lat_pos_m")
 
 
@@ -130,10 +131,11 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     final = run_directory(out_dir, task)
     final.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
-    writer = (work / WRITER_LOCK).open("w")
-    fcntl.flock(writer, fcntl.LOCK_EX)  # a batch cleaning up dead runs' partial folders leaves this one alone
-    os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared Ray folder
+    writer = None
     try:
+        writer = (work / WRITER_LOCK).open("w")
+        fcntl.flock(writer, fcntl.LOCK_EX)  # a batch cleaning up dead runs' partial folders leaves this one alone
+        os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared folder
         scenario_text = tomli_w.dumps(spec.to_toml_data())
         manifest = {"run_id": task.run_id, "scenario": spec.name, "variant": variant, "seed": spec.seed,
                     "parameter_hash": task.parameter_hash(custom), "versions": versions()}
@@ -193,26 +195,31 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             collision_events=[asdict(c) for c in session.collisions], versions=manifest["versions"],
             planner=planner)
         write_json(work / SUMMARY_FILE, asdict(summary))
-        (work / WRITER_LOCK).unlink()  # still locked until closed below: the folder is not dead meanwhile
         _replace_dir(work, final)
+        (final / WRITER_LOCK).unlink(missing_ok=True)  # once renamed: a partial folder without it would look dead
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
     finally:
-        writer.close()
+        if writer is not None:
+            writer.close()
     return summary
 
 
 def partial_run_is_live(partial: Path) -> bool:
-    """Whether a run's process is still writing the ``.partial`` folder (it holds the folder's writer lock)."""
+    """Whether a run's process may still be writing the ``.partial`` folder: it holds the folder's writer lock, or
+    the folder is too new to have one yet (a run takes it right after creating the folder)."""
     try:
         fh = (partial / WRITER_LOCK).open("r")
-    except OSError:  # no lock file: its run died before it took the lock, or the folder is gone
-        return False
-    with fh:
+    except FileNotFoundError:  # a run that died before it took the lock, unless it is just starting
         try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            return time.time() - partial.stat().st_mtime < NEW_PARTIAL_S
+        except OSError:  # the folder is gone
+            return False
+    with fh:
+        try:  # shared: an exclusive lock needs a file open for writing on NFS, where Ray's shared folders live
+            fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:  # held by the run (or locks unavailable: keep the folder rather than risk a live run)
             return True
     return False
 

@@ -107,7 +107,9 @@ def lane_change_command(frame: RoadFrame, target: np.ndarray, state: BicycleStat
     gaps = np.array([s_e - half - s_ref_r, s_ref_f - s_e - half])
     too_slow = has_r & ~formulas.is_safe_distance(gaps[0], d_min[0])
     cmd = np.where(too_slow, np.maximum(cmd, v_e + st.evasive_accel * dt), cmd)
-    v_low = formulas.min_safe_speed_ahead_of_reach(gaps[0], reach[0], rear.min_lon_gap[0], rss_ego.lon_brake_max)
+    # Beside the rear car (a gap below its λ) no speed is safe yet: speed up as for a gap of λ, which opens as it goes.
+    v_low = formulas.min_safe_speed_ahead_of_reach(np.maximum(gaps[0], rear.min_lon_gap[0]), reach[0],
+                                                   rear.min_lon_gap[0], rss_ego.lon_brake_max)
     evasive_v0 = np.where(too_slow, np.maximum(v0[:, 0], v_low + st.evasive_extra_speed), np.inf)
     safe_later = formulas.is_safe_distance(np.minimum(gaps, gaps + (v_front - v_rear) * st.commit_time), d_min)
     rear_unsafe, front_unsafe = has_r & ~safe_later[0], has_f & ~safe_later[1]
