@@ -282,9 +282,10 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         spec = replace(spec, grid={**spec.grid, **swept})  # the command line's sweeps replace the file's
         tasks += spec.tasks()
     out = args.out or Path("results") / args.specs[0].stem
-    signal.signal(signal.SIGTERM, _interrupt)  # a scheduler's or timeout's stop: as Ctrl-C, finished runs are kept
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)
-    signal.signal(signal.SIGTERM, _interrupt)  # again: ray.init installs a handler of its own (exit code 15)
+    # A scheduler's or timeout's stop: as Ctrl-C, finished runs are kept. Set once the executor is there: ray.init
+    # installs a handler of its own (exit code 15).
+    signal.signal(signal.SIGTERM, _interrupt)
     rows = run_batch(tasks, out, executor, progress=not args.quiet)
     failed = int((rows.status != "ok").sum())
     print(f"{len(rows) - failed} runs ok, {failed} failed -> {out / 'batch_summary.csv'}")

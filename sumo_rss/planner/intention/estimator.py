@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ...files import read_json_object
 from .features import Candidates
 from .model import IntentionNet, candidate_probabilities
 
@@ -68,14 +69,14 @@ def _check_card(weights: Path, architecture: dict) -> None:
     card_file = weights.with_name(CARD_FILE)
     if not card_file.is_file():
         return
-    try:
-        card = json.loads(card_file.read_text(encoding="utf-8"))
+    card = read_json_object(card_file)
+    if card is None:
+        differs = ["unreadable: not a JSON object"]
+    else:
         differs = [f"{key}: card {card.get(key)!r}, weights {actual!r}" for key, actual in
                    (("weights_bytes", weights.stat().st_size),
                     ("architecture", json.loads(json.dumps(dict(architecture)))))  # as JSON holds it
                    if card.get(key) != actual]
-    except (OSError, ValueError, AttributeError) as exc:
-        differs = [f"unreadable ({exc})"]
     if differs:
         warnings.warn(f"{card_file} does not describe {weights.name} ({'; '.join(differs)}): its data and figures "
                       "are not those of the weights in use", stacklevel=3)
