@@ -37,9 +37,13 @@ def test_scenario_runs_60_s_with_traffic_flowing(name):
     spec = _spec(name)
     session, snaps = _run(spec, 60.0)
     assert session.steps == 600 and snaps[0].time == 0.0 and snaps[-1].time == pytest.approx(59.9)
-    expected = sum(f.veh_per_hour for f in spec.demand.flows) * 60.0 / 3600.0
+    # Evenly spaced flows give their count within SUMO's insertion delays; random ones (a probability per second)
+    # a binomial count, allowed three standard deviations below its mean.
+    even = sum(f.veh_per_hour for f in spec.demand.flows if f.veh_per_hour) * 60.0 / 3600.0
+    random = sum(f.probability for f in spec.demand.flows if f.probability) * 60.0
+    expected = 0.8 * even + random - 3.0 * np.sqrt(random)
     background = session.vehicles_inserted - 1  # the ego departs within the first 30 s
-    assert background >= 0.8 * expected, (background, expected)
+    assert background >= expected, (background, expected)
     assert any(spec.ego.id in s.ids for s in snaps)
     last = snaps[-1]
     assert len(last) >= 10 and np.mean(last.speed) > 3.0  # moving traffic, not a jam
