@@ -17,6 +17,7 @@ from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS,
     MAX_CANDIDATES, lanes_branch
 from sumo_rss.planner.intention.model import ARCHITECTURE, IntentionNet, nll_loss
 from sumo_rss.planner.intention.train import TrainSettings, evaluate, predict, rule_probabilities, train
+from sumo_rss.errors import ScenarioError
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.scenario import load_scenario, networks_root
 
@@ -235,15 +236,17 @@ def test_samples_need_a_step_that_divides_the_history_sampling_and_horizon(tmp_p
     if usable:
         dataset.check_step(step_s, "s.toml")
         return
-    with pytest.raises(ValueError, match=rf"s\.toml: step_s {step_s:g} s: intention samples need a step that divides "
-                                         r"0\.2 s \(the history's spacing\), 0\.5 s \(sampling\) and 3 s \(horizon\)"):
+    with pytest.raises(ScenarioError, match=r"s\.toml: step_s: intention samples need a step \[s\] that divides 0\.2 s "
+                                            r"\(the history's spacing\), 0\.5 s \(sampling\) and 3 s \(horizon\), e\.g\. "
+                                            rf"0\.1 or 0\.05, got {step_s!r}"):
         dataset.check_step(step_s, "s.toml")
     scenario = tmp_path / "coarse.toml"
     scenario.write_text((SCENARIOS / "merge_onramp.toml").read_text().replace("seed = 0", f"seed = 0\nstep_s = {step_s}"))
     proc = subprocess.run([sys.executable, "-m", "sumo_rss", "train-intent", "--scenarios", str(scenario),
                            "--train-seeds", "0", "--test-seeds", "100", "--out", str(tmp_path / "out"), "--quiet"],
                           capture_output=True, text=True, check=False)
-    assert proc.returncode == 2 and f"coarse.toml: step_s {step_s:g} s" in proc.stderr and "Traceback" not in proc.stderr
+    assert proc.returncode == 2 and "coarse.toml: step_s: intention samples" in proc.stderr
+    assert f"got {step_s!r}" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_the_shipped_card_describes_the_shipped_weights():

@@ -152,8 +152,7 @@ class RayExecutor:
                 ray.init(address=None if address == "local" else address, log_to_driver=False)
             except ConnectionError as exc:  # a one-line error, not Ray's traceback
                 if address in ("auto", "local"):
-                    raise SumoRssError(f"--ray-address {address}: no Ray cluster to connect to ({exc}); start one "
-                                       "with 'ray start --head', or use 'local'") from None
+                    raise _no_cluster(address, "to connect to", exc) from None
                 # Something listens there (checked above) but refused or did not answer as a Ray cluster.
                 raise SumoRssError(f"--ray-address {address}: the Ray cluster there refused the connection or did "
                                    f"not answer ({exc})") from None
@@ -186,5 +185,9 @@ def _check_listening(address: str) -> None:
     try:
         socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT_S).close()
     except OSError as exc:
-        raise SumoRssError(f"--ray-address {address}: no Ray cluster listens there ({exc}); start one with "
-                           "'ray start --head', or use 'local'") from None
+        raise _no_cluster(address, "listens there", exc) from None
+
+
+def _no_cluster(address: str, where: str, cause: Exception) -> SumoRssError:
+    return SumoRssError(f"--ray-address {address}: no Ray cluster {where} ({cause}); start one with 'ray start "
+                        "--head', or use 'local'")

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...errors import ScenarioError
 from ...files import atomic_path
 from ...road.network import RoadNetwork
 from ...scenario import ScenarioSpec, load_scenario
@@ -35,13 +36,13 @@ ARRAYS = ("history", "lanes", "mask", "lateral", "target", "offset", "lat_speed"
 
 
 def check_step(step_s: float, source: object) -> None:
-    """ValueError naming ``source`` unless the step ``step_s`` [s] divides the history spacing, the sampling period
-    and the horizon (0.25 s made the history 0.25 s apart, 0.5 s divided by zero)."""
+    """ScenarioError naming ``source`` unless the step ``step_s`` [s] divides the history spacing, the sampling
+    period and the horizon (0.25 s made the history 0.25 s apart, 0.5 s divided by zero)."""
     steps = np.array([HISTORY_DT, SAMPLE_EVERY, FUTURE]) / step_s
     if np.any(np.round(steps) < 1) or np.any(np.abs(steps - np.round(steps)) > 1e-6):
-        raise ValueError(f"{source}: step_s {step_s:g} s: intention samples need a step that divides {HISTORY_DT:g} s "
-                         f"(the history's spacing), {SAMPLE_EVERY:g} s (sampling) and {FUTURE:g} s (horizon), e.g. "
-                         "0.1 or 0.05 s")
+        raise ScenarioError(source, "step_s", f"intention samples need a step [s] that divides {HISTORY_DT:g} s (the "
+                            f"history's spacing), {SAMPLE_EVERY:g} s (sampling) and {FUTURE:g} s (horizon), e.g. 0.1 "
+                            "or 0.05", step_s)
 
 
 def family_of(network: str) -> str:
