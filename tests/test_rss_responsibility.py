@@ -51,14 +51,16 @@ def test_the_step_in_which_the_response_time_ends_is_bounded_by_the_time_weighte
     after) has the mean 0.5·3.5 − 0.5·4 = −0.25 m/s² there: compliant. Its bound is no longer −b_min = −4 (which
     blamed it, excess 3.75); braking less, e.g. a mean of +0.5 m/s², still violates it by 0.75."""
     exact = _rear_car_run([3.5, 3.5, -0.25, -4.0, -4.0], rho=0.25)
-    assert exact.episode_records[0]["owed_a"] == "lon:brake-min"
-    assert exact.violation_records == [] and exact.episode_records[0]["responsible"] == "none"
+    (episode,) = exact.episodes().to_dict("records")
+    assert episode["owed_a"] == "lon:brake-min" and episode["responsible"] == "none"
+    assert exact.violations().empty
     late = _rear_car_run([3.5, 3.5, 0.5, -4.0, -4.0], rho=0.25)
-    (violation,) = late.violation_records
+    (violation,) = late.violations().to_dict("records")
     assert violation["constraint"] == "lon-brake-after-response-time" and violation["t_start_s"] == pytest.approx(0.4)
     assert violation["bound"] == pytest.approx(-0.25) and violation["excess"] == pytest.approx(0.75)
     on_the_grid = _rear_car_run([3.5] * 9 + [0.0, -3.0], rho=1.0)  # ρ = 1 s ends with a step: −b_min after it
-    assert [(v["bound"], v["t_start_s"]) for v in on_the_grid.violation_records] == [(-4.0, pytest.approx(1.2))]
+    late_brake = on_the_grid.violations()
+    assert list(zip(late_brake["bound"], late_brake["t_start_s"])) == [(-4.0, pytest.approx(1.2))]
 
 
 def test_the_step_that_ends_an_episode_is_judged_also_where_the_pair_is_no_longer_evaluated():
@@ -72,9 +74,9 @@ def test_the_step_that_ends_an_episode_is_judged_also_where_the_pair_is_no_longe
     _step(tracker, 2.0, _pair(False, False, v_lat_a=0.3), accel=(2.6, 0.0))  # within ρ: allowed
     _step(tracker, 3.0, _pair(False, False), accel=(2.6, 0.0), keys=())  # gone from the candidates
     tracker.finish()
-    (episode,) = tracker.episode_records
+    (episode,) = tracker.episodes().to_dict("records")
     assert (episode["t_b_s"], episode["t_end_s"], episode["ended_by"]) == (1.0, 3.0, "safe")
-    (violation,) = tracker.violation_records
+    (violation,) = tracker.violations().to_dict("records")
     assert violation["constraint"] == "lon-brake-after-response-time" and violation["vehicle_id"] == "a"
     assert violation["worst_actual"] == pytest.approx(2.6) and episode["responsible"] == "a"
 
@@ -88,10 +90,10 @@ def test_the_step_that_ends_an_episode_is_judged_the_one_that_starts_it_is_not()
     _step(tracker, 0.1, _pair(False, False), accel=(0.0, -12.0))
     _step(tracker, 0.2, _pair(False, True), accel=(0.0, -12.0))
     tracker.finish()
-    (episode,) = tracker.episode_records
+    (episode,) = tracker.episodes().to_dict("records")
     assert (episode["t_b_s"], episode["t_end_s"], episode["ended_by"]) == (0.1, 0.2, "safe")
     assert episode["owed_b"] == "lon:brake-at-most-max" and episode["responsible"] == "b"
-    (violation,) = tracker.violation_records
+    (violation,) = tracker.violations().to_dict("records")
     assert (violation["vehicle_id"], violation["constraint"], violation["t_start_s"], violation["excess"]) == \
         ("b", "lon-brake-beyond-max", 0.2, pytest.approx(4.0))
 
@@ -108,9 +110,9 @@ def test_a_lateral_response_that_has_come_to_rest_must_stay_at_rest():
         _step(tracker, round(k * DT, 10), _pair(False, False))
     _step(tracker, 1.2, _pair(False, False, v_lat_a=0.3))
     tracker.finish()
-    (episode,) = tracker.episode_records
+    (episode,) = tracker.episodes().to_dict("records")
     assert episode["owed_a"] == "lat:brake" and episode["responsible"] == "a"
-    (violation,) = tracker.violation_records
+    (violation,) = tracker.violations().to_dict("records")
     assert (violation["constraint"], violation["bound"], violation["worst_actual"]) == \
         ("lat-speed-envelope", 0.0, pytest.approx(0.3))
 
@@ -130,9 +132,9 @@ def test_the_lateral_tolerance_stops_growing_once_the_envelope_has_reached_zero(
             _step(tracker, t, _pair(False, False, v_lat_a=1.0 if t >= moving - 1e-9 else 0.0))
             k += 1
         tracker.finish()
-        (episode,) = tracker.episode_records
+        (episode,) = tracker.episodes().to_dict("records")
         assert episode["responsible"] == "a", start
-        (violation,) = tracker.violation_records
+        (violation,) = tracker.violations().to_dict("records")
         assert (violation["constraint"], violation["bound"], violation["worst_actual"], violation["t_start_s"]) == \
             ("lat-speed-envelope", 0.0, pytest.approx(1.0), pytest.approx(moving)), start
 
@@ -179,7 +181,7 @@ def test_after_a_contact_the_model_did_not_see_coming_no_episode_opens_while_the
     _step(tracker, 2.0, _pair(True, False))
     _step(tracker, 2.1, _pair(False, False))
     tracker.finish()
-    assert [(e["t_b_s"], e["episode_index"]) for e in tracker.episode_records] == [(2.1, 1)]
+    assert [(e["t_b_s"], e["episode_index"]) for e in tracker.episodes().to_dict("records")] == [(2.1, 1)]
 
 
 @pytest.mark.parametrize("tolerance, blamed", [(0.05, True), (0.15, False)])
@@ -195,4 +197,4 @@ def test_accelerations_measured_coarsely_are_judged_within_their_resolution(tole
         _step(tracker, round(k * 0.1, 10), _pair(False, False), accel=(-3.9, 0.0), params=p,
               accel_tolerance=tolerance)
     tracker.finish()
-    assert (tracker.episode_records[0]["responsible"] == "a") == blamed
+    assert (tracker.episodes().to_dict("records")[0]["responsible"] == "a") == blamed

@@ -18,6 +18,7 @@ from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
+from .records import EPISODE_COLUMNS, VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
 from .signals import SignalRule
@@ -25,12 +26,6 @@ from .situations import PairSituations, evaluate, vehicle_frame
 
 INTERSECTION_KEY = np.int64(1) << np.int64(62)  # marks a pair's intersection situation (its own episodes)
 
-EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "episode_index",
-                   "situation", "conflict_area", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b",
-                   "responsible",
-                   "min_lon_margin_m", "min_lat_margin_m", "collision", "collider", "victim", "ended_by"]
-VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
-                     "worst_actual", "excess", "t_start_s", "t_end_s"]
 COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
 PAIR_STATE_COLUMNS = ["run_id", "episode_key", "time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m",
                       "dangerous"]
@@ -238,10 +233,10 @@ class Auditor:
 
     def finish(self) -> AuditResult:
         self._tracker.finish()
-        episodes = pd.DataFrame(self._tracker.episode_records, columns=EPISODE_COLUMNS)
-        episodes = episodes.sort_values(["t_b_s", "vehicle_a", "vehicle_b"], kind="stable", ignore_index=True)
+        episodes = self._tracker.episodes().sort_values(["t_b_s", "vehicle_a", "vehicle_b"], kind="stable",
+                                                        ignore_index=True)
         signal = self._signal_rule.records if self._signal_rule is not None else []
-        violations = pd.DataFrame(self._tracker.violation_records + signal, columns=VIOLATION_COLUMNS)
+        violations = _concat_rows(self._tracker.violations(), pd.DataFrame(signal, columns=VIOLATION_COLUMNS))
         violations = violations.sort_values(["t_start_s", "episode_key", "vehicle_id", "constraint"], kind="stable",
                                             ignore_index=True)
         collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)
@@ -249,6 +244,12 @@ class Auditor:
         if self.trace_class is not None:
             pair_states = self._pair_states()
         return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states)
+
+
+def _concat_rows(*frames: pd.DataFrame) -> pd.DataFrame:
+    """The rows of ``frames`` (same columns) in order; empty frames are left out, so they cannot change a dtype."""
+    rows = [frame for frame in frames if len(frame)]
+    return pd.concat(rows, ignore_index=True) if rows else frames[0]
 
 
 def _area_rules(keys: np.ndarray, number: np.ndarray, crossing: PairSituations, margin: np.ndarray) -> AreaRules:

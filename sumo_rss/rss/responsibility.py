@@ -12,9 +12,11 @@ from enum import Enum
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from .params import RssParamArrays
 from .duties import duties_at_threshold
+from .records import EPISODE_COLUMNS, VIOLATION_COLUMNS, RecordTable
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
 EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
@@ -155,8 +157,11 @@ class ResponsibilityTracker:
 
     def __init__(self, run_id: str = ""):
         self.run_id = run_id
-        self.episode_records: list[dict] = []
-        self.violation_records: list[dict] = []
+        self._episodes = RecordTable(EPISODE_COLUMNS)
+        self._violations = RecordTable(VIOLATION_COLUMNS)
+        # Episodes closed at the current step, stored at the next one (or by finish): a collision reported at this
+        # step may still join them (collide).
+        self._closed_now: list[dict] = []
         self._open = _Episodes()
         self._prev_keys = np.zeros(0, dtype=np.int64)
         self._prev_rules = np.zeros(0, dtype=np.int8)
@@ -172,6 +177,7 @@ class ResponsibilityTracker:
         """Advance to ``step.time``."""
         if self._last_time is not None and step.time <= self._last_time + TIME_EPS:
             raise ValueError(f"time must increase: {step.time} s after {self._last_time} s")
+        self._store_closed()
         sit = step.situations
         order = np.argsort(step.keys, kind="stable")
         keys = step.keys[order]
@@ -247,6 +253,19 @@ class ResponsibilityTracker:
         """Close every open episode at the last observed time (end of data)."""
         if len(self._open):
             self._close(np.ones(len(self._open), dtype=bool), self._last_time or 0.0, end_of_data=True)
+        self._store_closed()
+
+    def episodes(self) -> pd.DataFrame:
+        """The closed episodes so far, in the order they closed (EPISODE_COLUMNS)."""
+        return self._episodes.frame(self._closed_now)
+
+    def violations(self) -> pd.DataFrame:
+        """The finished violations so far, in the order they finished (VIOLATION_COLUMNS)."""
+        return self._violations.frame()
+
+    def _store_closed(self) -> None:
+        self._episodes.extend(self._closed_now)
+        self._closed_now = []
 
     # -----------------------------------------------------------------------------------------------------
     def _episode_key(self, i: int) -> str:
@@ -383,7 +402,7 @@ class ResponsibilityTracker:
         for i, car, c in zip(*np.nonzero(mask)):
             vid = e.a_id[i] if car == 0 else e.b_id[i]
             vclass = e.a_class[i] if car == 0 else e.b_class[i]
-            self.violation_records.append({
+            self._violations.append({
                 "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_id": vid,
                 "vehicle_class": vclass, "role": e.roles[i, car], "constraint": CONSTRAINTS[c].value,
                 "bound": float(e.v_bound[i, car, c]), "worst_actual": float(e.v_worst[i, car, c]),
@@ -413,7 +432,7 @@ class ResponsibilityTracker:
                 "collision": collision is not None, "collider": collision[0] if collision else "",
                 "victim": collision[1] if collision else "", "ended_by": "collision" if collision else
                 "end-of-data" if end_of_data else "safe"})
-        self.episode_records.extend(records)
+        self._closed_now.extend(records)
         self._open = e.take(np.flatnonzero(~mask))
         return records
 
