@@ -3,12 +3,18 @@ gzipped outputs (``*.gz``, as SUMO writes them when asked for such a name) are r
 from __future__ import annotations
 
 import gzip
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
+from xml.parsers import expat
 
 MALFORMED = (ET.ParseError, EOFError, gzip.BadGzipFile)  # what reading a damaged (or cut) output raises
+# What expat reports when the input ends before the document does (it asks for more bytes than the file has).
+_CUT_CODES = frozenset(expat.errors.codes[message] for message in (
+    expat.errors.XML_ERROR_NO_ELEMENTS, expat.errors.XML_ERROR_UNCLOSED_TOKEN, expat.errors.XML_ERROR_PARTIAL_CHAR,
+    expat.errors.XML_ERROR_UNCLOSED_CDATA_SECTION))
 
 
 def open_output(path: Path) -> IO[bytes]:
@@ -22,9 +28,25 @@ def bytes_consumed(source: IO[bytes]) -> int:
     return (source.fileobj if isinstance(source, gzip.GzipFile) else source).tell()
 
 
+def ends_cut(error: BaseException, source: IO[bytes]) -> bool:
+    """Whether reading ``source`` failed with ``error`` (one of MALFORMED) only because the file ends before its
+    document does, as it does when SUMO is killed while writing it: a gzip stream that ends early, or expat asking
+    for more once every byte has been read. Damage inside the file is not a cut."""
+    if isinstance(error, EOFError):
+        return True
+    if not (isinstance(error, ET.ParseError) and error.code in _CUT_CODES):
+        return False
+    try:
+        return source.read(1) == b""
+    except MALFORMED:
+        return False
+
+
 def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]:
     """The ``tag`` elements of the SUMO output ``path``, whose root must be ``root_tag``; ValueError naming the
-    root found otherwise, one of MALFORMED for a damaged file."""
+    root found otherwise, one of MALFORMED for a damaged file. A cut file (:func:`ends_cut`) gives its complete
+    elements, with a warning."""
+    count = 0
     with open_output(path) as source:
         context = ET.iterparse(source, events=("start", "end"))
         try:
@@ -33,7 +55,14 @@ def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]
             raise ValueError("an empty file") from None
         if root.tag != root_tag:
             raise ValueError(f"root element <{root.tag}>, expected <{root_tag}>")
-        for event, elem in context:
-            if event == "end" and elem.tag == tag:
-                yield elem
-                root.clear()  # read: dropped, so memory stays constant over a long output
+        try:
+            for event, elem in context:
+                if event == "end" and elem.tag == tag:
+                    count += 1
+                    yield elem
+                    root.clear()  # read: dropped, so memory stays constant over a long output
+        except MALFORMED as exc:
+            if not ends_cut(exc, source):
+                raise
+            warnings.warn(f"{path}: the file ends before its end tag </{root_tag}> (cut off, as when SUMO is "
+                          f"killed while writing it): read its {count} complete <{tag}> records", stacklevel=3)

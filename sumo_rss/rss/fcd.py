@@ -24,7 +24,7 @@ from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
-from ..sumo_xml import MALFORMED, bytes_consumed, open_output, output_elements
+from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane
@@ -210,14 +210,23 @@ class FcdReader:
                 if root.tag != "fcd-export":
                     raise FcdError(f"{self.path}: not an FCD file (root element <{root.tag}>, expected "
                                    "<fcd-export>)")
-                for event, elem in context:
-                    if event == "start" and elem.tag == "timestep":
-                        time = elem.get("time")
-                    elif event == "end" and elem.tag == "timestep":
-                        snapshot = self._snapshot(elem, self._time_of(elem))
-                        self.bytes_read = bytes_consumed(source)
-                        yield snapshot
-                        root.clear()
+                last = None  # the last complete time step [s]
+                try:
+                    for event, elem in context:
+                        if event == "start" and elem.tag == "timestep":
+                            time = elem.get("time")
+                        elif event == "end" and elem.tag == "timestep":
+                            last = self._time_of(elem)
+                            snapshot = self._snapshot(elem, last)
+                            self.bytes_read = bytes_consumed(source)
+                            yield snapshot
+                            root.clear()
+                except MALFORMED as exc:
+                    if last is None or not ends_cut(exc, source):
+                        raise
+                    warnings.warn(f"{self.path}: the file breaks off after time step {last:g} s (no end tag "
+                                  "</fcd-export>, as when SUMO is killed while writing it): read the time steps up "
+                                  f"to {last:g} s", stacklevel=2)
         except MALFORMED as exc:
             where = f"after time step {time} s" if time is not None else "before the first time step"
             raise FcdError(f"{self.path}: malformed or truncated FCD {where} ({exc})") from exc
