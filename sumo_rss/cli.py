@@ -115,7 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Co-simulate one scenario and write its run directory "
                                      "OUT/<scenario>/<seed>/ (resolved scenario.toml, summary.json, SUMO logs); "
                                      "with --controller C, OUT/<scenario>__controller=C/<seed>/, as a batch's "
-                                     "controller sweep names it.",
+                                     "controller sweep names it. Ctrl-C (or SIGTERM) ends the run after the "
+                                     "current step and writes it up to there (summary status 'interrupted', exit "
+                                     "code 130); a second Ctrl-C aborts without results.",
                          epilog=_RUN_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("scenario", type=Path, help="scenario TOML file")
     run.add_argument("--seed", type=_seed, help="random seed (default: the scenario's)")
@@ -244,13 +246,37 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         # Runs with another controller go to their own folder, as in a batch sweep, not over the scenario's run.
         variant = variant_name({"controller": args.controller}) if args.controller else ""
-        signal.signal(signal.SIGTERM, _interrupt)  # as Ctrl-C: the half-written run folder is removed
-        summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step)
-    print(f"{spec.name} seed {spec.seed}: {summary.steps} steps, {summary.vehicles_inserted} vehicles "
+        stop = _StopRequest()
+        signal.signal(signal.SIGINT, stop.request)
+        signal.signal(signal.SIGTERM, stop.request)
+        summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step,
+                          stop=stop)
+    ended = f"interrupted at {summary.sim_time_s:g} s: " if summary.status == "interrupted" else ""
+    print(f"{spec.name} seed {spec.seed}: {ended}{summary.steps} steps, {summary.vehicles_inserted} vehicles "
           f"(peak {summary.peak_vehicles}), {summary.collisions} collisions, {summary.teleports} teleports, "
           f"{summary.episodes} RSS episodes, {summary.real_time_factor:.0f}x real time "
           f"-> {run_directory(args.out, Task(spec, variant))}")
-    return 0
+    return EXIT_INTERRUPTED if ended else 0
+
+
+class _StopRequest:
+    """Ctrl-C (or SIGTERM) during ``run``: the first ends the run after the current step, its results written up to
+    there; the second aborts at once (nothing is written)."""
+
+    def __init__(self) -> None:
+        self.requested = False
+
+    def request(self, signum: int, frame: object) -> None:
+        from tqdm import tqdm
+
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        tqdm.write("sumo-rss: stopping after this step and writing the run up to it (Ctrl-C again: abort, "
+                   "nothing written)", file=sys.stderr)
+
+    def __call__(self) -> bool:
+        return self.requested
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:

@@ -381,19 +381,45 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path, s
     assert (summary.status == "ok").sum() >= 1 and set(summary.status) <= {"ok", "missing"}
 
 
-def test_sigterm_stops_a_single_run_cleanly(two_scenarios, tmp_path):
-    """'sumo-rss run' under a scheduler or timeout: SIGTERM is Ctrl-C, and the half-written run folder goes."""
-    out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "sumo_rss", "run", str(two_scenarios / "light.toml"), "--duration",
-                             "300", "--out", str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+def _start_run(scenario, out) -> subprocess.Popen:
+    """'sumo-rss run' of ``scenario`` for 600 s, once it has started stepping (its route file is written)."""
+    proc = subprocess.Popen([sys.executable, "-m", "sumo_rss", "run", str(scenario), "--duration", "600", "--out",
+                             str(out), "--quiet"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)
     deadline = time.time() + 120
     while not list(out.glob("*/.*.partial/routes.rou.xml")) and time.time() < deadline:
         time.sleep(0.05)
+    return proc
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_or_sigterm_ends_a_single_run_early_with_its_results(two_scenarios, tmp_path, stop):
+    """'sumo-rss run' stopped by Ctrl-C, or by SIGTERM as a scheduler or timeout sends it: the run ends after the
+    current step and is written up to there, as the run of that duration is (an hour's run is not lost)."""
+    out = tmp_path / "out"
+    proc = _start_run(two_scenarios / "light.toml", out)
+    time.sleep(5.0)  # a few simulated seconds
+    proc.send_signal(stop)
+    printed, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "stopping after this step" in err and "Traceback" not in err, (printed, err)
+    (run,) = out.glob("*/*")
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and 1.0 < summary["sim_time_s"] < 600.0
+    assert f"interrupted at {summary['sim_time_s']:g} s" in printed and not list(out.glob("**/.*.partial"))
+    short = load_scenario(two_scenarios / "light.toml").with_overrides(duration_s=summary["sim_time_s"])
+    assert run_one(short, tmp_path / "short").steps == summary["steps"]
+    for name in AUDIT_FILES:
+        assert (run / name).read_bytes() == (tmp_path / "short" / run.relative_to(out) / name).read_bytes(), name
+
+
+def test_a_second_signal_aborts_a_single_run_without_results(two_scenarios, tmp_path):
+    out = tmp_path / "out"
+    proc = _start_run(two_scenarios / "light.toml", out)
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and "interrupted" in err
-    assert list(out.glob("**/.*.partial")) == [] and list(out.glob("*/0")) == []
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "sumo-rss: interrupted" in err
+    assert list(out.glob("**/.*.partial")) == [] and list(out.glob("*/*")) == []
 
 
 def test_a_batch_script_without_a_main_guard_fails_with_a_message_that_says_so(two_scenarios, tmp_path):
@@ -439,7 +465,7 @@ def test_a_finished_run_with_a_damaged_summary_is_run_again(two_scenarios, tmp_p
     out = tmp_path / "out"
     run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
     (out / tasks[0].run_id / damaged).write_text(content)
-    with pytest.warns(UserWarning, match="other scenario parameters or are damaged"):
+    with pytest.warns(UserWarning, match="other scenario parameters, were interrupted or are damaged"):
         rows = run_batch(tasks, out, LocalExecutor(workers=1), progress=False)
     assert rows.status.tolist() == ["ok"]
     assert json.loads((out / tasks[0].run_id / "summary.json").read_text())["status"] == "ok"

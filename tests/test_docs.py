@@ -90,7 +90,7 @@ def test_the_documented_python_api_exists_with_the_documented_parameters():
             target = getattr(target, name)
         resolved[parts[-1]] = target
     assert len(resolved) >= 10
-    for name, parameters in (("run_one", "spec out_dir variant fcd on_step controller"),
+    for name, parameters in (("run_one", "spec out_dir variant fcd on_step controller stop"),
                              ("run_batch", "tasks out_dir executor progress"),
                              ("Auditor", "network params run_id trace_class signal_rule"),
                              ("audit_fcd", "fcd network params vehicles collisions tls_states ego_ids run_id "

@@ -45,8 +45,8 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
         todo = [t for t in tasks if not _finished(out_dir, t)]
         stale = [run_directory(out_dir, t) for t in todo if (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
         if stale:
-            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters or "
-                          "are damaged; running them again", stacklevel=2)
+            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters, "
+                          "were interrupted or are damaged; running them again", stacklevel=2)
             for folder in stale:  # gone first: a rerun that fails must not leave the old results standing for it
                 shutil.rmtree(folder)
         failed = 0

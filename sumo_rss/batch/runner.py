@@ -50,7 +50,7 @@ class RunSummary:
     scenario: str
     variant: str
     seed: int
-    status: str  # 'ok'
+    status: str  # 'ok'; 'interrupted': stopped early on request (run_one's ``stop``), audited up to there
     steps: int
     sim_time_s: float
     wall_time_s: float
@@ -108,13 +108,16 @@ def responsible_counts(episodes: pd.DataFrame) -> dict[str, int]:
 
 
 def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool | None = None,
-            on_step: Callable[[float], None] | None = None, controller: EgoController | None = None) -> RunSummary:
+            on_step: Callable[[float], None] | None = None, controller: EgoController | None = None,
+            stop: Callable[[], bool] | None = None) -> RunSummary:
     """Co-simulate ``spec`` (its own seed), audit every step and write its run directory.
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
     directory either holds a whole run or does not exist. ``on_step(simulated_s)`` is called after every step.
     ``controller`` drives the ego instead of the scenario's ``ego.controller`` (recorded as 'custom'); its
-    ``summary()`` dict, if it has one, is written as planner.json.
+    ``summary()`` dict, if it has one, is written as planner.json. ``stop()`` is asked after every step: True
+    ends the run there, and it is written as a whole run of that length with status 'interrupted' (a batch
+    runs it again).
     """
     custom = None
     if controller is not None:
@@ -153,6 +156,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)
         report = getattr(driver, "summary", None)  # planner.json, and summary.json's 'planner'
         ego_rows = []
+        interrupted = False
         with Session(spec, work, fcd=fcd) as session:
             while not session.finished:
                 snapshot = session.step()
@@ -166,6 +170,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                         session.place_ego(driver.command(snapshot, auditor))
                 if on_step is not None:
                     on_step(session.steps * spec.step_s)
+                if stop is not None and not session.finished and stop():
+                    interrupted = True
+                    break
         audit = auditor.finish()
         wall = time.perf_counter() - started
         simulated = round(session.steps * spec.step_s, 3)  # steps are whole ms: no float residue (30.400000000000002)
@@ -181,7 +188,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         ego_blamed = ((episodes.class_a == EGO_CLASS) & episodes.responsible.isin(["a", "both"])) | \
             ((episodes.class_b == EGO_CLASS) & episodes.responsible.isin(["b", "both"]))
         summary = RunSummary(
-            run_id=task.run_id, scenario=spec.name, variant=variant, seed=spec.seed, status="ok",
+            run_id=task.run_id, scenario=spec.name, variant=variant, seed=spec.seed,
+            status="interrupted" if interrupted else "ok",
             steps=session.steps, sim_time_s=simulated, wall_time_s=wall,
             real_time_factor=simulated / wall if wall > 0 else float("inf"),
             vehicles_inserted=session.vehicles_inserted, peak_vehicles=session.peak_vehicles,
