@@ -5,7 +5,7 @@ import json
 import re
 
 from conftest import REPO
-from sumo_rss.rss import auditor, formulas, responsibility, situations
+from sumo_rss.rss import auditor, formulas, records, responsibility, situations
 from sumo_rss.rss.params import PARAM_NAMES
 
 OUTPUTS = (REPO / "docs" / "outputs.md").read_text(encoding="utf-8")
@@ -19,15 +19,15 @@ def _table(heading: str) -> list[list[str]]:
 
 def test_every_glossary_code_name_exists():
     known = set(PARAM_NAMES) | set(dir(formulas)) | set(dir(responsibility)) | set(dir(situations)) | \
-        set(auditor.EPISODE_COLUMNS) | set(auditor.COLLISION_COLUMNS)
+        set(records.EPISODE_COLUMNS) | set(auditor.COLLISION_COLUMNS)
     names = [n for row in _table("## Glossary") for n in re.findall(r"`([^`]+)`", row[1])]
     assert len(names) >= 15
     assert [n for n in names if n not in known] == []
 
 
 def test_documented_columns_are_the_written_columns():
-    for heading, columns in (("## `episodes.csv`", auditor.EPISODE_COLUMNS),
-                             ("## `violations.csv`", auditor.VIOLATION_COLUMNS),
+    for heading, columns in (("## `episodes.csv`", records.EPISODE_COLUMNS),
+                             ("## `violations.csv`", records.VIOLATION_COLUMNS),
                              ("## `collisions.csv`", auditor.COLLISION_COLUMNS)):
         documented = [n for row in _table(heading) for n in re.findall(r"`([^`]+)`", row[0])]
         assert documented == columns, heading

@@ -18,7 +18,7 @@ from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .params import RssParamArrays, RssParams, resolve_params
-from .records import EPISODE_COLUMNS, VIOLATION_COLUMNS
+from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import intersection_situations
 from .signals import SignalRule
