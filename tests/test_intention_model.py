@@ -11,17 +11,16 @@ import numpy as np
 import pytest
 import torch
 
+from conftest import SCENARIOS
+from sumo_rss.errors import ScenarioError
 from sumo_rss.planner.intention import dataset, estimator
 from sumo_rss.planner.intention.estimator import SHIPPED_WEIGHTS, load_estimator, save_weights
 from sumo_rss.planner.intention.features import HISTORY_FEATURES, HISTORY_STEPS, KEEP, LANE_POINTS, \
     MAX_CANDIDATES, lanes_branch
 from sumo_rss.planner.intention.model import ARCHITECTURE, IntentionNet, nll_loss
 from sumo_rss.planner.intention.train import TrainSettings, evaluate, predict, rule_probabilities, train
-from sumo_rss.errors import ScenarioError
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.scenario import load_scenario, networks_root
-
-from conftest import SCENARIOS
 
 
 def _random_inputs(n: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:

@@ -40,8 +40,8 @@ def test_scenario_runs_60_s_with_traffic_flowing(name):
     # Evenly spaced flows give their count within SUMO's insertion delays; random ones (a probability per second)
     # a binomial count, allowed three standard deviations below its mean.
     even = sum(f.veh_per_hour for f in spec.demand.flows if f.veh_per_hour) * 60.0 / 3600.0
-    random = sum(f.probability for f in spec.demand.flows if f.probability) * 60.0
-    expected = 0.8 * even + random - 3.0 * np.sqrt(random)
+    arrivals = sum(f.probability for f in spec.demand.flows if f.probability) * 60.0  # expected random arrivals
+    expected = 0.8 * even + arrivals - 3.0 * np.sqrt(arrivals)
     background = session.vehicles_inserted - 1  # the ego departs within the first 30 s
     assert background >= expected, (background, expected)
     assert any(spec.ego.id in s.ids for s in snaps)
