@@ -167,3 +167,48 @@ def test_a_car_standing_still_lies_along_its_lane_whatever_its_noise_level_later
     assert len(beside) == 2
     assert pairs.lat_gap[beside] == pytest.approx([3.5 - WIDTH] * 2, abs=1e-6)
     assert not pairs.dangerous[beside].any()
+
+
+def test_a_junction_that_only_joins_two_edges_has_a_lane_frame_and_no_false_danger(tmp_path):
+    """netconvert writes the internal lane of a node that only joins two edges as one point twice (length 0.10 m):
+    its frame divided by zero (NaN offsets, a raw numpy warning) and a car on it was in danger with a leader 160 m
+    ahead. Its frame now runs straight on in the direction of the lane it leads to."""
+    import subprocess
+    import warnings
+
+    from sumo_rss.rss.auditor import ParamResolver
+    from sumo_rss.rss.fcd import audit_fcd
+    from sumo_rss.sumo_home import sumo_tool
+
+    (tmp_path / "n.nod.xml").write_text('<nodes><node id="A" x="0" y="0"/><node id="B" x="500" y="100"/>'
+                                        '<node id="C" x="1000" y="200"/></nodes>')
+    (tmp_path / "n.edg.xml").write_text('<edges><edge id="AB" from="A" to="B" numLanes="1" speed="30"/>'
+                                        '<edge id="BC" from="B" to="C" numLanes="1" speed="30"/></edges>')
+    subprocess.run([str(sumo_tool("netconvert")), "-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
+                    "-o", str(tmp_path / "n.net.xml")], check=True, capture_output=True)
+    net = RoadNetwork.from_file(tmp_path / "n.net.xml")
+    k = int(net.lane_indices([":B_0_0"])[0])
+    start = net.shapes.points[k, 0]
+    assert net.lane_length[k] == pytest.approx(0.1)  # the network has what this test is about
+    heading = np.arctan2(100.0, 500.0)
+    normal = np.array([-np.sin(heading), np.cos(heading)])
+    s, d, lane_heading = net.frenet(np.array([k, k]), np.array([start[0], start[0] + normal[0]]),
+                                    np.array([start[1], start[1] + normal[1]]))
+    np.testing.assert_allclose(s, [0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(d, [0.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(lane_heading, heading, atol=1e-9)
+    # A follower on the junction's lane, its leader 160 m on along BC, both at 20 m/s: safe (d_min ≈ 46 m).
+    ahead = start + 160.0 * np.array([np.cos(heading), np.sin(heading)])
+    angle = f"{90.0 - np.degrees(heading):.6f}"
+    steps = "".join(
+        f'<timestep time="{t:.2f}">'
+        f'<vehicle id="follower" x="{start[0]:.6f}" y="{start[1]:.6f}" angle="{angle}" speed="20" lane=":B_0_0" '
+        f'pos="0.05" acceleration="0"/>'
+        f'<vehicle id="leader" x="{ahead[0] + 2.0 * t:.6f}" y="{ahead[1]:.6f}" angle="{angle}" speed="20" '
+        f'lane="BC_0" pos="{160.0 + 2.0 * t:.6f}" acceleration="0"/></timestep>' for t in (0.0, 0.1))
+    (tmp_path / "fcd.xml").write_text(f"<fcd-export>{steps}</fcd-export>")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.filterwarnings("ignore", r".*vType", UserWarning)
+        result = audit_fcd(tmp_path / "fcd.xml", net, ParamResolver())
+    assert result.episodes.empty

@@ -121,7 +121,7 @@ class RoadNetwork:
             lane_speed=np.array([lane.getSpeed() for lane in lanes]),
             lane_offset=offsets, lane_left=left, lane_right=right, lane_successors=tuple(successors),
             lane_ends=lane_ends,
-            shapes=LaneShapes.from_polylines([np.array(lane.getShape(), dtype=float)[:, :2] for lane in lanes]),
+            shapes=LaneShapes.from_polylines(_centre_lines(lanes, successors)),
             edge_ids=np.array([e.getID() for e in edges], dtype=str),
             edge_internal=np.array([e.getFunction() == "internal" for e in edges]),
             edge_opposite=opposite, edge_length=edge_length,
@@ -161,6 +161,35 @@ class RoadNetwork:
         if lane.dtype.kind in "USO":
             lane = self.lane_indices(lane)
         return self.shapes.project(lane, x, y, s_hint)
+
+
+def _centre_lines(lanes: list, successors: list[tuple[int, ...]]) -> list[np.ndarray]:
+    """Every lane's centre line [m]. A lane whose shape has no length (netconvert writes the internal lane of a
+    junction that only joins two edges as one point twice, with length 0.10 m) becomes a straight line of its
+    length, in the direction in which the lane it leads to starts, else in which one leading to it ends, else +x."""
+    shapes = [np.array(lane.getShape(), dtype=float)[:, :2] for lane in lanes]
+    predecessors: dict[int, int] = {}
+    for k, nxt in enumerate(successors):
+        for j in nxt:
+            predecessors.setdefault(j, k)
+    lines = list(shapes)
+    for k, shape in enumerate(shapes):
+        if np.any(np.diff(shape, axis=0)):
+            continue
+        candidates = [_first_direction(shapes[j]) for j in successors[k]]
+        if k in predecessors:
+            backwards = _first_direction(shapes[predecessors[k]][::-1])
+            candidates.append(None if backwards is None else -backwards)
+        direction = next((d for d in candidates if d is not None), np.array([1.0, 0.0]))
+        lines[k] = np.array([shape[0], shape[0] + lanes[k].getLength() * direction])
+    return lines
+
+
+def _first_direction(line: np.ndarray) -> np.ndarray | None:
+    """The unit direction of the first step of ``line`` that has a length (None: it has none)."""
+    steps = np.diff(line, axis=0)
+    steps = steps[np.any(steps != 0.0, axis=1)]
+    return steps[0] / np.linalg.norm(steps[0]) if len(steps) else None
 
 
 def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:
