@@ -5,7 +5,7 @@ from __future__ import annotations
 import gzip
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 from xml.parsers import expat
@@ -42,10 +42,11 @@ def ends_cut(error: BaseException, source: IO[bytes]) -> bool:
         return False
 
 
-def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]:
+def output_elements(path: Path, root_tag: str, tag: str,
+                    on_cut: Callable[[int], None] | None = None) -> Iterator[ET.Element]:
     """The ``tag`` elements of the SUMO output ``path``, whose root must be ``root_tag``; ValueError naming the
     root found otherwise, one of MALFORMED for a damaged file. A cut file (:func:`ends_cut`) gives its complete
-    elements, with a warning."""
+    elements, with a warning; ``on_cut(number of complete elements)`` is called then too."""
     count = 0
     with open_output(path) as source:
         context = ET.iterparse(source, events=("start", "end"))
@@ -66,3 +67,5 @@ def output_elements(path: Path, root_tag: str, tag: str) -> Iterator[ET.Element]
                 raise
             warnings.warn(f"{path}: the file ends before its end tag </{root_tag}> (cut off, as when SUMO is "
                           f"killed while writing it): read its {count} complete <{tag}> records", stacklevel=3)
+            if on_cut is not None:
+                on_cut(count)

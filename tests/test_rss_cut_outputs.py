@@ -95,3 +95,26 @@ def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(r
     assert episodes.count("\n") > 20
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
         assert (tmp_path / "cut" / name).read_text() == (tmp_path / "closed" / name).read_text(), name
+
+
+def test_fcd_steps_after_a_cut_signal_state_file_are_named(tmp_path):
+    """A signal-state file that breaks off (SUMO killed: its buffer reached the disk before the FCD's last one) left
+    the later time steps audited with its last states without a word."""
+    from sumo_rss.rss.auditor import ParamResolver
+    from sumo_rss.rss.fcd import audit_fcd
+    from sumo_rss.rss.signals import SignalStates
+
+    net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+    states = tmp_path / "tls.xml"
+    states.write_text('<tlsStates>\n' + "".join(f'    <tlsState time="{t:.2f}" id="C" programID="0" phase="0" '
+                                               f'state="GGgrrrGGgrrr"/>\n' for t in (0.0, 0.1, 0.2))
+                      + '    <tlsState time="0.30" id="C" progr')
+    with pytest.warns(UserWarning, match=r"tls\.xml: the file ends before its end tag </tlsStates>"):
+        assert SignalStates(net, states).known_until == pytest.approx(0.2)
+    steps = "".join(f'<timestep time="{t:.2f}"><vehicle id="v" x="{200.0 - t:.6f}" y="4.800000" angle="270" '
+                    f'speed="10" lane="E_in_0" pos="{100.0 + t:.6f}" acceleration="0" type="DEFAULT_VEHTYPE"/>'
+                    "</timestep>" for t in (0.0, 0.1, 0.2, 0.3, 0.4))
+    (tmp_path / "fcd.xml").write_text(f"<fcd-export>{steps}</fcd-export>")
+    with pytest.warns(UserWarning, match=r"tls\.xml: the signal states break off at 0\.2 s; the time steps of "
+                                         r".*fcd\.xml after it \(to 0\.4 s\) were audited with the states at 0\.2 s"):
+        audit_fcd(tmp_path / "fcd.xml", RoadNetwork.from_file(net), ParamResolver(), tls_states=states)

@@ -218,10 +218,11 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
         proc.stderr
 
 
-def _fcd_vehicle(vid: str, at: float, **changed: str) -> str:
+def _fcd_vehicle(vid: str, at: float, **changed: str | None) -> str:
+    """A vehicle element; ``changed`` attributes replace the defaults (None: left out)."""
     attributes = {"id": vid, "x": f"{at}", "y": "-1.75", "angle": "90", "speed": "3", "lane": "hw0_1", "pos": f"{at}",
                   "posLat": "0", "acceleration": "0", "type": "car", **changed}
-    return "<vehicle " + " ".join(f'{k}="{v}"' for k, v in attributes.items()) + "/>"
+    return "<vehicle " + " ".join(f'{k}="{v}"' for k, v in attributes.items() if v is not None) + "/>"
 
 
 @pytest.mark.parametrize("changed, message", [
@@ -232,7 +233,11 @@ def _fcd_vehicle(vid: str, at: float, **changed: str) -> str:
     ({"acceleration": "x0"}, "vehicle 'a': acceleration: expected a finite number, got 'x0'"),
     ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer, got '0.0'"),
     ({"id": "b"}, "vehicle 'b' is listed more than once"),
-], ids=["nan", "inf", "negative-speed", "optional", "acceleration", "signals", "twice"])
+    ({"lane": None}, "vehicle 'a' lacks the attribute 'lane' (needed: id, x, y, angle, speed, lane; SUMO writes them "
+                     "by default, and with --fcd-output.attributes they must be listed)"),
+    ({"angle": None}, "vehicle 'a' lacks the attribute 'angle' (needed: id, x, y, angle, speed, lane; SUMO writes "
+                      "them by default, and with --fcd-output.attributes they must be listed)"),
+], ids=["nan", "inf", "negative-speed", "optional", "acceleration", "signals", "twice", "no-lane", "no-angle"])
 @pytest.mark.filterwarnings("ignore:.*vType car is not defined")
 def test_bad_values_in_an_fcd_name_the_time_step_vehicle_and_attribute(tmp_path, changed, message):
     """Every attribute read is checked (finite numbers, integer signals, ids once per step): a bad value is an
@@ -765,3 +770,15 @@ def test_an_fcd_without_time_steps_is_named(tmp_path):
     with pytest.warns(UserWarning, match=r"empty\.xml: no <timestep> in the file: nothing to audit"):
         result = audit_fcd(fcd, RoadNetwork.from_file(HIGHWAY), ParamResolver())
     assert result.episodes.empty
+
+
+@pytest.mark.filterwarnings("ignore:.*vType car is not defined")
+def test_persons_in_an_fcd_are_named_once_as_not_audited(tmp_path):
+    fcd = tmp_path / "f.xml"
+    person = '<person id="p1" x="30.0" y="-8.0" angle="90" speed="1.2" pos="30.0" edge="hw0"/>'
+    fcd.write_text("<fcd-export>" + "".join(f'<timestep time="{t:.2f}">{_fcd_vehicle("a", 20.0 + 3.0 * t)}{person}'
+                                             "</timestep>" for t in (0.0, 0.1, 0.2)) + "</fcd-export>")
+    with pytest.warns(UserWarning, match=r"f\.xml, time step 0\.0 s: persons and containers are not audited") as seen:
+        snapshots = list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
+    assert sum("persons and containers" in str(w.message) for w in seen) == 1
+    assert [s.ids.tolist() for s in snapshots] == [["a"]] * 3

@@ -36,6 +36,8 @@ FINE_DECIMALS = 6  # positions written with this many decimals (sumo --precision
 # speed [m/s], edge, lane, lateral position in the lane (off-centre) and across the edge [m], lateral speed [m/s].
 _UNSEEN = (0.0, -1, -1, 1.0, 0.0, 0.0)
 SUMO_DEFAULT_SIZE = (5.0, 1.8)  # [m] length, width of SUMO's default passenger vType (for vTypes SUMO was not given)
+NEEDED_ATTRIBUTES = ("needed: id, x, y, angle, speed, lane; SUMO writes them by default, and with "
+                     "--fcd-output.attributes they must be listed")
 STEP_TIME_TOLERANCE = 1e-6  # [s] a report at a step's time (both written with SUMO's few decimals) belongs to it
 
 
@@ -195,6 +197,7 @@ class FcdReader:
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
+        self._warned_persons = False  # about persons and containers, which are not audited
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -297,12 +300,15 @@ class FcdReader:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
         rows = [v.attrib for v in step.iter("vehicle")]
         where = f"{self.path}, time step {time} s"
-        try:
-            ids = np.array([r["id"] for r in rows], dtype=str)
-            lane_id = np.array([r["lane"] for r in rows], dtype=str)
-        except KeyError as exc:
-            raise FcdError(f"{where}: a vehicle lacks the attribute {exc} (needed: id, x, y, angle, speed, lane)") \
-                from exc
+        if not self._warned_persons and (step.find("person") is not None or step.find("container") is not None):
+            self._warned_persons = True
+            warnings.warn(f"{where}: persons and containers are not audited (the RSS model covers vehicles; a "
+                          "collision with one is listed with blamed 'none')", stacklevel=3)
+        lacking = next(((r.get("id", "?"), name) for r in rows for name in ("id", "lane") if name not in r), None)
+        if lacking is not None:
+            raise FcdError(f"{where}: vehicle {lacking[0]!r} lacks the attribute {lacking[1]!r} ({NEEDED_ATTRIBUTES})")
+        ids = np.array([r["id"] for r in rows], dtype=str)
+        lane_id = np.array([r["lane"] for r in rows], dtype=str)
         if len(set(ids.tolist())) < len(ids):
             twice = next(v for v, count in Counter(ids.tolist()).items() if count > 1)
             raise FcdError(f"{where}: vehicle {twice!r} is listed more than once")
@@ -427,6 +433,10 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         auditor.record_collisions(contacts.step(found))
     if not steps:
         warnings.warn(f"{fcd}: no <timestep> in the file: nothing to audit", stacklevel=2)
+    elif signals.known_until is not None and snapshot.time > signals.known_until + STEP_TIME_TOLERANCE:
+        warnings.warn(f"{signals.saved_states}: the signal states break off at {signals.known_until:g} s; the time "
+                      f"steps of {fcd} after it (to {snapshot.time:g} s) were audited with the states at "
+                      f"{signals.known_until:g} s", stacklevel=2)
     if reports is not None:
         reports.warn_unused(collisions, fcd)
     if absent:
@@ -473,8 +483,7 @@ def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool
         pass
     bad = next(r for r in rows if not _is_number(r.get(name, default), kind))
     if bad.get(name, default) is None:
-        raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r} lacks the attribute '{name}' (needed: id, x, y, "
-                       "angle, speed, lane)")
+        raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
     raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r}: {name}: expected "
                    f"{'an integer' if integer else 'a finite number'}, got {bad[name]!r}")
 

@@ -143,6 +143,8 @@ class SignalStates:
     """Signal states over time for offline audits: ``states(time) -> {signal: state string}``."""
 
     def __init__(self, net_file: Path, saved_states: Path | None = None):
+        self.saved_states = saved_states
+        self.known_until: float | None = None  # [s] the last saved state's time where the file breaks off
         self._saved: dict[str, tuple[list[float], list[str]]] = {}
         self._programs: dict[str, tuple[float, list[tuple[float, str]]]] = {}
         net = sumolib.net.readNet(str(net_file), withPrograms=True)
@@ -169,13 +171,16 @@ class SignalStates:
             self._programs[tl_id] = (float(getattr(programs[0], '_offset', 0) or 0.0), phases)
 
     def _read_saved(self, path: Path) -> None:
+        cut: list[int] = []
         try:
-            for elem in output_elements(path, "tlsStates", "tlsState"):
+            for elem in output_elements(path, "tlsStates", "tlsState", on_cut=cut.append):
                 times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
                 times.append(float(elem.get("time", "nan")))
                 states.append(elem.get("state", ""))
         except (*MALFORMED, ValueError) as exc:
             raise ValueError(f"{path}: not a readable SUMO signal-state file (SaveTLSStates output: {exc})") from exc
+        if cut:
+            self.known_until = max((times[-1] for times, _ in self._saved.values()), default=0.0)
 
     def states(self, time: float) -> dict[str, str] | None:
         out = {}
