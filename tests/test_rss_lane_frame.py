@@ -212,3 +212,31 @@ def test_a_junction_that_only_joins_two_edges_has_a_lane_frame_and_no_false_dang
         warnings.filterwarnings("ignore", r".*vType", UserWarning)
         result = audit_fcd(tmp_path / "fcd.xml", net, ParamResolver())
     assert result.episodes.empty
+
+
+def test_a_car_standing_still_at_a_lane_changes_leftover_angle_lies_along_its_lane():
+    """sumo --lanechange.duration leaves a car that stops at the end of a lane change at its angle (38° at its lane's
+    centre): its centre, put half its length behind the front bumper at that angle, was up to 1.5 m towards the
+    next lane, and a car standing there overlapped it (a collision SUMO never had, when audited without its collision
+    file). Standing, it lies along its lane; moving, SUMO's angle counts."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+    cars = [("turned", "hw0_1", 300.0), ("left", "hw0_2", 301.0)]
+    poses = [_front_bumper(net, lane, pos) for _, lane, pos in cars]
+    n = len(cars)
+
+    def pairs(speed: float):
+        snapshot = WorldSnapshot(
+            time=0.0, ids=np.array([c[0] for c in cars]), x=np.array([p[0] for p in poses]),
+            y=np.array([p[1] for p in poses]), heading=np.array([poses[0][2] - np.radians(38.0), poses[1][2]]),
+            speed=np.array([speed, 0.0]), accel=np.zeros(n), lat_speed=np.zeros(n), length=np.full(n, LENGTH),
+            width=np.full(n, WIDTH), lane_id=np.array([c[1] for c in cars]), edge_id=np.full(n, "hw0"),
+            lane_index=np.array([1, 2]), lane_pos=np.array([c[2] for c in cars]), lat_pos=np.zeros(n),
+            vclass=np.full(n, "background"), vtype=np.full(n, "car"), signals=np.zeros(n, int),
+            route_index=np.zeros(n, int), route_edges=None)
+        params = RssParamArrays.stack([preset_params("ad_rss", "background")] * n)
+        return evaluate(snapshot, vehicle_frame(snapshot, net, params, RouteTable(net).remaining(snapshot)), net)
+
+    standing = pairs(0.0)
+    assert standing.lat_gap == pytest.approx([3.5 - WIDTH], abs=1e-6)
+    moving = pairs(1.0)  # its centre where SUMO's angle puts it: 0.5 * 4.5 m * sin 38° towards the left lane
+    assert moving.lat_gap == pytest.approx([3.5 - WIDTH - 0.5 * LENGTH * np.sin(np.radians(38.0))], abs=1e-6)

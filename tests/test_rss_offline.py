@@ -145,7 +145,7 @@ def test_the_rear_car_of_a_merging_pair_in_contact_is_named_the_collider():
         route_index=np.zeros(2, int))
     pairs = Auditor(net, ParamResolver("ad_rss")).observe(snapshot)
     assert pairs.kind.tolist() == [2] and not pairs.a_is_rear[0]  # merge; car a ('a_front') is the front car
-    (contact,) = overlap_contacts(snapshot, pairs)
+    (contact,) = overlap_contacts(snapshot, pairs, net)
     assert (contact.collider, contact.victim, contact.kind) == ("b_rear", "a_front", "overlap")
 
 

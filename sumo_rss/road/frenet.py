@@ -72,6 +72,21 @@ class LaneShapes:
         d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
         return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])
 
+    def point_at(self, lane: np.ndarray, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) [m] of the points ``s`` along lanes ``lane`` and ``d`` left of them [m] (the inverse of
+        :meth:`project`; beyond a lane's ends along its first or last segment's extension)."""
+        lane = np.asarray(lane, dtype=int)
+        s = np.asarray(s, dtype=float)
+        n_seg = self.count[lane] - 1
+        k = np.clip((self.cumulative[lane] <= s[:, None]).sum(axis=1) - 1, 0, n_seg - 1)
+        start = self.points[lane, k]
+        seg = self.points[lane, k + 1] - start
+        unit = seg / np.linalg.norm(seg, axis=1)[:, None]
+        along = (s - self.cumulative[lane, k])[:, None] * unit
+        left = np.asarray(d, dtype=float)[:, None] * np.column_stack([-unit[:, 1], unit[:, 0]])
+        point = start + along + left
+        return point[:, 0], point[:, 1]
+
     def heading_at(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Heading [rad] of lanes ``lane`` at distances ``s`` [m] along them."""
         lane = np.asarray(lane, dtype=int)

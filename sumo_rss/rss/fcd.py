@@ -27,7 +27,7 @@ from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
 from .signals import SignalStates
-from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane
+from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
 
 JUMP_SPEED = 5.0  # [m/s] lateral motion faster than this between two FCD steps is a lane change done in one step
 CENTRED = 0.05  # [m] a car this close to its lane's centre line at two steps, in another lane, jumped between them
@@ -429,7 +429,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
             new = contacts.step(reports.take_until(snapshot.time))
             auditor.observe(snapshot, new)
             continue
-        found = overlap_contacts(snapshot, auditor.observe(snapshot))
+        found = overlap_contacts(snapshot, auditor.observe(snapshot), network)
         auditor.record_collisions(contacts.step(found))
     if not steps:
         warnings.warn(f"{fcd}: no <timestep> in the file: nothing to audit", stacklevel=2)
@@ -445,11 +445,11 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     return auditor.finish()
 
 
-def overlap_contacts(snapshot: WorldSnapshot, pairs: PairSituations) -> list[CollisionEvent]:
+def overlap_contacts(snapshot: WorldSnapshot, pairs: PairSituations, network: RoadNetwork) -> list[CollisionEvent]:
     """The evaluated ``pairs`` whose bounding boxes overlap (:func:`_in_contact`), as collision events of type
     'overlap'. The rear car of a pair going the same way (also a merge) is named the collider (SUMO's convention),
     else car a."""
-    overlap = _in_contact(snapshot, pairs)
+    overlap = _in_contact(snapshot, pairs, network)
     a_named = pairs.a_is_rear | ~np.isin(pairs.kind, SAME_DIRECTION_CODES)
     collider = np.where(a_named, pairs.a, pairs.b)[overlap]
     victim = np.where(a_named, pairs.b, pairs.a)[overlap]
@@ -457,16 +457,17 @@ def overlap_contacts(snapshot: WorldSnapshot, pairs: PairSituations) -> list[Col
                            "", 0.0) for c, v in zip(collider, victim)]
 
 
-def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations) -> np.ndarray:
+def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations, network: RoadNetwork) -> np.ndarray:
     """Per evaluated pair, whether the two bounding boxes overlap: both gaps negative for a road pair (lane frame);
-    the footprints themselves for a pair crossing in a junction (its gaps are distances to the conflict area)."""
+    the footprints themselves (:func:`body_poses`) for a pair crossing in a junction (its gaps are distances to the
+    conflict area)."""
     overlap = (pairs.lon_gap < 0.0) & (pairs.lat_gap < 0.0)
     crossing = np.flatnonzero(pairs.kind >= FIRST_INTERSECTION_CODE)
     if crossing.size:
-        x, y = snapshot.centres()
+        x, y, heading = body_poses(snapshot, network, network.lane_indices(snapshot.lane_id))
         a, b = pairs.a[crossing], pairs.b[crossing]
-        overlap[crossing] = boxes_overlap(x[a], y[a], snapshot.heading[a], snapshot.length[a], snapshot.width[a],
-                                          x[b], y[b], snapshot.heading[b], snapshot.length[b], snapshot.width[b])
+        overlap[crossing] = boxes_overlap(x[a], y[a], heading[a], snapshot.length[a], snapshot.width[a],
+                                          x[b], y[b], heading[b], snapshot.length[b], snapshot.width[b])
     return overlap
 
 

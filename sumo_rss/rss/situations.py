@@ -41,6 +41,9 @@ SITUATION_CODES = tuple(SituationType)  # index = code in arrays
 SAME_DIRECTION_CODES = (0, 2)  # same direction and merge: one car follows the other
 FIRST_INTERSECTION_CODE = 3
 FOOTPRINT_MIN_SPEED = 0.05  # [m/s] below this a car's footprint lies along its lane (its motion has no direction)
+# [rad] SUMO's angle of a car standing still is its rear-to-front direction along its path, within 1.2° of its lane's
+# (measured on the shipped junctions' curves); further off, it is a lane change's leftover (body_poses).
+LEFTOVER_ANGLE = np.radians(10.0)
 WRONG_WAY_COS = -0.94  # a car heading within 20° of its lane's opposite direction drives against it
 # Safety rules that held, as bits (what was still safe just before t_b decides the owed response).
 RULE_LON, RULE_LAT = 1, 2  # roads: longitudinally / laterally safe
@@ -166,7 +169,7 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     """Per-vehicle geometry in the network and the per-car terms of the safe distances; the candidate bound
     ``reach`` with ``candidate_params`` where given (the parameters without ``hold_standing``)."""
     lane = network.lane_indices(snapshot.lane_id)
-    cx, cy = snapshot.centres()
+    cx, cy, _ = body_poses(snapshot, network, lane)
     # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
     hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
     s, d, lane_heading = network.frenet(lane, cx, cy, hint)
@@ -202,6 +205,32 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         stop_max=stopping_distance(forward, params.lon_brake_max),
         lat_reach_as_left=lateral_reach(-v_lat, params), lat_reach_as_right=lateral_reach(v_lat, params),
         route_edges=route_edges, params=params)
+
+
+def body_poses(snapshot: WorldSnapshot, network: RoadNetwork,
+               lane: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every car's geometric centre (x, y) [m] and body heading [rad] (``lane``: the indices of its lanes), from
+    SUMO's front bumper and angle (rear to front). A car standing still (slower than FOOTPRINT_MIN_SPEED) whose
+    angle is more than LEFTOVER_ANGLE (and less than 90°) off its lane lies along its lane instead, its back its length behind the front
+    bumper along the lane at the bumper's offset: sumo --lanechange.duration leaves a car that stops as a lane
+    change ends at the change's angle (38° at its lane's centre: its box reached 1.5 m into the next lane)."""
+    cx, cy = snapshot.centres()
+    heading = snapshot.heading
+    standing = np.flatnonzero(np.hypot(snapshot.speed, snapshot.lat_speed) < FOOTPRINT_MIN_SPEED)
+    if standing.size:
+        k = lane[standing]
+        s, d, _ = network.frenet(k, snapshot.x[standing], snapshot.y[standing])
+        back_x, back_y = network.shapes.point_at(k, s - snapshot.length[standing], d)
+        front_x, front_y = snapshot.x[standing], snapshot.y[standing]
+        along = np.arctan2(front_y - back_y, front_x - back_x)
+        off = np.abs(wrap_angle(heading[standing] - along))
+        turned = (off > LEFTOVER_ANGLE) & (off < 0.5 * np.pi)  # not a car against its lane (overtaking, U-turn)
+        if turned.any():
+            rows = standing[turned]
+            cx, cy, heading = cx.copy(), cy.copy(), heading.copy()
+            cx[rows], cy[rows] = 0.5 * (front_x + back_x)[turned], 0.5 * (front_y + back_y)[turned]
+            heading[rows] = along[turned]
+    return cx, cy, heading
 
 
 def against_lane(network: RoadNetwork, lane: np.ndarray, s: np.ndarray, lane_heading: np.ndarray,
