@@ -25,7 +25,7 @@ from sumo_rss.batch.runner import WRITER_LOCK, run_one
 from sumo_rss.batch.spec import BatchSpec, Task, load_batch, parse_seeds
 from sumo_rss.errors import ScenarioError, SumoRssError
 from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
-from sumo_rss.report.summary import read_batch_csv, responsibility_category, responsibility_table
+from sumo_rss.report.summary import ego_table, read_batch_csv, responsibility_category, responsibility_table
 
 AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", "ego_trace.csv")
 
@@ -274,7 +274,7 @@ def test_report_plots_what_the_csvs_say(two_scenarios, tmp_path):
     run_batch(batch.tasks(), out, LocalExecutor(workers=2), progress=False)
     html = write_report(out)
     page = html.read_text()
-    for name in ("responsibility", "violations", "pair_timeline", "ego_speed"):
+    for name in ("ego_responsibility", "responsibility", "violations", "pair_timeline", "ego_speed"):
         assert (out / "report" / f"{name}.png").stat().st_size > 5000
         assert f"alt='{name}' src='data:image/png;base64," in page  # self-contained
     # Bar lengths of the responsibility plot = counts recomputed here from the episodes CSV.
@@ -289,6 +289,21 @@ def test_report_plots_what_the_csvs_say(two_scenarios, tmp_path):
         for r, label in enumerate(table.index):
             assert widths[k * n + r] == expected.get(category, pd.Series(dtype=int)).get(label, 0)
     assert sum(widths) == len(episodes)
+    # The ego's table: its episodes by who broke a proper response, counted here from the episodes CSV.
+    summary = read_batch_csv(out, "batch_summary")
+    ego = ego_table(episodes, summary)
+    for scenario, rows in episodes.groupby("scenario"):
+        as_a, as_b = rows.class_a == "ego", rows.class_b == "ego"
+        mine = rows[as_a | as_b]
+        ego_broke = (as_a & rows.responsible.isin(["a", "both"])) | (as_b & rows.responsible.isin(["b", "both"]))
+        other_broke = (as_a & rows.responsible.isin(["b", "both"])) | (as_b & rows.responsible.isin(["a", "both"]))
+        row = ego.loc[scenario]
+        assert row["seeds"] == "0, 1" and row["episodes"] == len(mine) > 0
+        assert row["responsible: ego"] == (ego_broke & ~other_broke).sum()
+        assert row["responsible: the other car only"] == (other_broke & ~ego_broke).sum()
+        assert row["responsible: nobody"] == (mine.responsible == "none").sum()
+        assert row["ego mean speed [m/s]"] == pytest.approx(summary[summary.scenario == scenario].ego_mean_speed_ms
+                                                              .mean())
     # Every run's row is in the HTML summary.
     for run_id in read_batch_csv(out, "batch_summary").run_id:
         assert run_id in page
@@ -327,6 +342,8 @@ def test_the_timeline_plots_numbers_and_tables_show_runs_without_any(tmp_path):
     violations = pd.DataFrame({"constraint": ["lat-speed-envelope"], "scenario": ["s"], "variant": ["a"]})
     table = violation_table(violations, ["s [a]", "s [b]"])
     assert table.loc["lat-speed-envelope"].to_dict() == {"s [a]": 1, "s [b]": 0}
+    assert table.loc["signal-red-light"].to_dict() == {"s [a]": 0, "s [b]": 0}  # every rule: 0 is not "unchecked"
+    assert violation_table(pd.DataFrame(), ["s [a]"]).loc["lon-brake-beyond-max", "s [a]"] == 0
     assert responsibility_table(pd.DataFrame(), ["s [b]"]).loc["s [b]"].sum() == 0
 
 

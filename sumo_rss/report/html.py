@@ -10,11 +10,11 @@ import pandas as pd
 
 from ..errors import SumoRssError
 from ..files import atomic_path, write_text
-from .plots import ego_speed, pair_timeline, responsibility_bars, violation_histogram
-from .summary import read_batch_csv, responsibility_table, run_label, violation_table
+from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
+from .summary import ego_table, read_batch_csv, responsibility_table, run_label, violation_table
 
 
-FIGURES = ("responsibility", "violations", "pair_timeline", "ego_speed")
+FIGURES = ("ego_responsibility", "responsibility", "violations", "pair_timeline", "ego_speed")
 SUMMARY_COLUMNS_USED = ("run_id", "scenario", "variant", "seed", "status")  # of batch_summary.csv
 
 
@@ -36,7 +36,9 @@ def write_report(batch_dir: Path) -> Path:
     figures_dir.mkdir(exist_ok=True)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
     responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
-    figures = {"responsibility": responsibility_bars(responsibility)[0], "violations": violation_histogram(broken)[0]}
+    ego = ego_table(episodes, summary)
+    figures = {"ego_responsibility": ego_responsibility_bars(ego)[0],
+               "responsibility": responsibility_bars(responsibility)[0], "violations": violation_histogram(broken)[0]}
     timeline = longest_traced_episode(episodes, states)
     if timeline is not None:
         figures["pair_timeline"] = pair_timeline(states, timeline)[0]
@@ -52,7 +54,7 @@ def write_report(batch_dir: Path) -> Path:
             fig.savefig(tmp, dpi=100, format="png")
         plt.close(fig)
         images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
-    page = _page(batch_dir, summary, responsibility, broken, images)
+    page = _page(batch_dir, summary, ego, responsibility, broken, images)
     out = batch_dir / "report.html"
     write_text(out, page)
     return out
@@ -94,9 +96,13 @@ def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame
     return traces
 
 
-def _page(batch_dir: Path, summary: pd.DataFrame, responsibility: pd.DataFrame, violations: pd.DataFrame,
-          images: dict[str, str]) -> str:
+def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibility: pd.DataFrame,
+          violations: pd.DataFrame, images: dict[str, str]) -> str:
     ok = int((summary.status == "ok").sum())
+
+    def image(name: str) -> list[str]:
+        return [f"<img alt='{name}' src='data:image/png;base64,{images[name]}'>"] if name in images else []
+
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'>",
         f"<title>sumo_rss report: {html.escape(batch_dir.name)}</title>",
@@ -104,19 +110,25 @@ def _page(batch_dir: Path, summary: pd.DataFrame, responsibility: pd.DataFrame, 
         "font-size:small}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
         "img{max-width:100%}</style></head><body>",
         f"<h1>sumo_rss batch report: {html.escape(batch_dir.name)}</h1>",
-        f"<p>{ok} of {len(summary)} runs ok. Units: SI (s, m/s). Responsibility follows RSS "
-        "(see docs/outputs.md): a car is responsible for an episode if it broke its proper response in it.</p>",
-        "<h2>Responsibility per scenario</h2>", responsibility.to_html(),
+        f"<p>{ok} of {len(summary)} runs ok. Units: SI (s, m/s). One row per scenario and variant, its successful "
+        "runs' seeds pooled. Responsibility follows RSS (see docs/outputs.md): a car is responsible for an "
+        "episode if it broke its proper response in it.</p>",
+        "<h2>The ego's danger episodes</h2>",
+        "<p>Episodes of a pair with the ego, by who was responsible; the ego's mean speed is the mean over the "
+        "runs of each run's mean while the ego was on the road.</p>", ego.to_html(float_format=lambda v: f"{v:.3f}"),
+        *image("ego_responsibility"),
+        "<h2>Every vehicle pair's danger episodes</h2>",
+        "<p>Episodes of every pair of vehicles (the ego's included), by whose violation made the episode someone's "
+        "responsibility: the ego's, the ego's and a background car's, background cars' only, nobody's.</p>",
+        responsibility.to_html(), *image("responsibility"),
+        "<h2>Violations by rule</h2>",
+        "<p>Intervals in which a vehicle broke a rule of its proper response (every vehicle; one episode can hold "
+        "several); signal rules are judged at signalised junctions when the scenario's signal rule is on.</p>",
+        *image("violations"), violations.to_html(),
     ]
-    for name, title in (("responsibility", ""), ("violations", "Violations by rule"),
-                        ("pair_timeline", "A danger episode of the ego, step by step"),
-                        ("ego_speed", "Ego speed")):
+    for name, title in (("pair_timeline", "A danger episode of the ego, step by step"), ("ego_speed", "Ego speed")):
         if name in images:
-            if title:
-                parts.append(f"<h2>{title}</h2>")
-            parts.append(f"<img alt='{name}' src='data:image/png;base64,{images[name]}'>")
-    if not violations.empty:
-        parts += ["<h3>Violations table</h3>", violations.to_html()]
+            parts += [f"<h2>{title}</h2>", *image(name)]
     parts += ["<h2>Runs</h2>", _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}",
                                                                     na_rep=""), "</body></html>"]
     return "\n".join(parts)

@@ -8,34 +8,52 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from .summary import RESPONSIBILITY_CATEGORIES  # noqa: E402
+from ..sim.snapshot import EGO_CLASS  # noqa: E402
+
+from .summary import EGO_CATEGORIES, RESPONSIBILITY_CATEGORIES  # noqa: E402
 
 COLOURS = {"ego": "#d62728", "ego & background": "#9467bd", "background": "#1f77b4", "none": "#bbbbbb"}
 
 
 def responsibility_bars(table: pd.DataFrame) -> tuple[Figure, pd.DataFrame]:
-    """Stacked bars: episodes per scenario by who was responsible."""
+    """Stacked bars: every pair's episodes per run label (seeds pooled) by whose violation made it someone's
+    responsibility."""
+    return _stacked(table, {c: c for c in RESPONSIBILITY_CATEGORIES}, "danger episodes of every vehicle pair",
+                    "Who was responsible (RSS): every pair, seeds pooled"), table
+
+
+def ego_responsibility_bars(table: pd.DataFrame) -> tuple[Figure, pd.DataFrame]:
+    """Stacked bars: the ego's episodes per run label (seeds pooled) by who was responsible (``table``:
+    summary.ego_table)."""
+    columns = {category: f"responsible: {name}" for category, name in EGO_CATEGORIES.items()}
+    return _stacked(table, columns, "danger episodes of the ego",
+                    "Who was responsible in the ego's episodes (RSS), seeds pooled"), table
+
+
+def _stacked(table: pd.DataFrame, columns: dict[str, str], xlabel: str, title: str) -> Figure:
+    """Horizontal stacked bars of ``table``'s ``columns`` (colour key → column), one bar per row."""
     fig, ax = plt.subplots(figsize=(8, 0.6 * max(len(table), 2) + 1.5))
     left = pd.Series(0, index=table.index, dtype=float)
-    for category in RESPONSIBILITY_CATEGORIES:
-        values = table[category] if category in table else pd.Series(0, index=table.index)
-        ax.barh(table.index, values, left=left, color=COLOURS[category], label=category)
+    for key, column in columns.items():
+        values = table[column] if column in table else pd.Series(0, index=table.index)
+        ax.barh(table.index, values, left=left, color=COLOURS[key], label=column)
         left += values
-    ax.set_xlabel("danger episodes")
-    ax.set_title("Who was responsible (RSS), per scenario")
+    ax.set_xlabel(xlabel)
+    ax.set_title(title)
     ax.invert_yaxis()
-    ax.legend(loc="lower right", fontsize="small")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     fig.tight_layout()
-    return fig, table
+    return fig
 
 
 def violation_histogram(table: pd.DataFrame) -> tuple[Figure, pd.DataFrame]:
-    """Grouped bars: violations per broken rule, one colour per scenario."""
-    fig, ax = plt.subplots(figsize=(8, 4))
-    if not table.empty:
+    """Grouped bars: violation intervals per rule (every vehicle, seeds pooled), one colour per run label."""
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    if not table.empty and len(table.columns):
         table.plot.bar(ax=ax, rot=15)
-    ax.set_ylabel("violations")
-    ax.set_title("Violations of the proper response, by rule")
+        ax.legend(title="run", loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    ax.set_ylabel("violation intervals")
+    ax.set_title("Violations of the proper response, by rule: every vehicle, seeds pooled")
     fig.tight_layout()
     return fig, table
 
@@ -52,8 +70,10 @@ def pair_timeline(states: pd.DataFrame, episode: pd.Series) -> tuple[Figure, pd.
         ax.plot(data.time_s, d_min, "--", label=f"{kind} d_min")
         ax.axvspan(episode.t_b_s, episode.t_end_s, color="#d62728", alpha=0.12, label="danger")
         ax.set_ylabel("m")
-        ax.legend(loc="upper right", fontsize="small")
-    axes[0].set_title(f"{episode.episode_key} ({episode.run_id}):\n"
+        ax.legend(loc="best", fontsize="small")
+    names = [f"{side} = {episode.get(f'vehicle_{side}', side)}"
+             f"{' (ego)' if episode.get(f'class_{side}') == EGO_CLASS else ''}" for side in ("a", "b")]
+    axes[0].set_title(f"{episode.episode_key} ({episode.run_id}), {', '.join(names)}:\n"
                       f"a owes {episode.owed_a or '-'}, b owes {episode.owed_b or '-'}; "
                       f"responsible: {episode.responsible}", fontsize="small")  # two lines: the run ids are long
     axes[1].set_xlabel("time [s]")
