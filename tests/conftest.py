@@ -3,6 +3,8 @@ planning frame on the straight part of the highway net."""
 from __future__ import annotations
 
 import copy
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -44,6 +46,22 @@ def highway() -> tuple[RoadNetwork, RoadFrame]:
 @pytest.fixture
 def valid_scenario() -> dict:
     return copy.deepcopy(VALID_SCENARIO)
+
+
+def run_cli(*args: str, **options) -> subprocess.CompletedProcess:
+    """``sumo-rss *args`` from the repository's root (its code, not an installed copy), output captured as text."""
+    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
+                          check=False, **options)
+
+
+@pytest.fixture(scope="module")
+def dense_run(tmp_path_factory) -> Path:
+    """The run folder of 60 s of highway_dense (seed 0) with its FCD, once per test module."""
+    out = tmp_path_factory.mktemp("dense")
+    proc = run_cli("run", str(SCENARIOS / "highway_dense.toml"), "--duration", "60", "--out", str(out), "--fcd",
+                   "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    return out / "highway_dense" / "0"
 
 
 def write_scenario(folder: Path, data: dict, name: str = "scenario.toml") -> Path:

@@ -17,7 +17,7 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
-from conftest import REPO, SCENARIOS, write_scenario
+from conftest import REPO, SCENARIOS, run_cli, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
 from sumo_rss.batch.orchestrator import _BatchLock, run_batch
@@ -28,11 +28,6 @@ from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
 from sumo_rss.report.summary import ego_table, read_batch_csv, responsibility_category, responsibility_table
 
 AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", "ego_trace.csv")
-
-
-def _cli(*args: str, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
-                          check=False, **kw)
 
 
 @pytest.fixture
@@ -75,7 +70,7 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
     write_scenario(two_scenarios, valid_scenario, "bad.toml")
     (two_scenarios / "mixed.toml").write_text('[batch]\nscenarios = ["light.toml", "bad.toml"]\nseeds = [0, 1]\n')
     out = tmp_path / "out"
-    proc = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--workers", "2", "--quiet")
+    proc = run_cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--workers", "2", "--quiet")
     assert proc.returncode == 1 and "2 runs ok, 2 failed" in proc.stdout
     summary = read_batch_csv(out, "batch_summary")
     assert list(summary.status) == ["ok", "ok", "failed", "failed"]
@@ -85,7 +80,7 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
     assert (out / "batch_summary.csv").read_text().splitlines()[1].split(",")[8] == "200"  # counts stay integers
     assert not (out / "bad" / "0").exists()
     finished = (out / "light" / "0" / "summary.json").stat().st_mtime_ns
-    again = _cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
+    again = run_cli("batch", str(two_scenarios / "mixed.toml"), "--out", str(out), "--quiet", "--seeds", "0:3")
     assert "3 runs ok, 3 failed" in again.stdout
     assert (out / "light" / "0" / "summary.json").stat().st_mtime_ns == finished  # skipped, not rerun
 
@@ -244,8 +239,8 @@ def test_a_ray_address_where_nothing_listens_fails_at_once(tmp_path):
     with socket.socket() as probe:  # a port that was free a moment ago: nothing listens there
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    proc = _cli("batch", str(SCENARIOS / "highway_sparse.toml"), "--seeds", "0", "--ray-address", f"127.0.0.1:{port}",
-                "--out", str(tmp_path / "out"), timeout=120)
+    proc = run_cli("batch", str(SCENARIOS / "highway_sparse.toml"), "--seeds", "0", "--ray-address",
+                   f"127.0.0.1:{port}", "--out", str(tmp_path / "out"), timeout=120)
     assert proc.returncode == 2
     assert f"--ray-address 127.0.0.1:{port}: no Ray cluster listens there" in proc.stderr
     assert not (tmp_path / "out").exists()
@@ -312,16 +307,16 @@ def test_report_plots_what_the_csvs_say(two_scenarios, tmp_path):
 def test_a_changed_scenario_is_run_again_and_old_batch_files_do_not_linger(two_scenarios, valid_scenario,
                                                                            tmp_path):
     out = tmp_path / "b"
-    assert _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 0
+    assert run_cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 0
     assert write_report(out) and (out / "episodes.csv").is_file() and (out / "report" / "ego_speed.png").is_file()
     valid_scenario["duration_s"] = 15.0
     write_scenario(two_scenarios, valid_scenario, "light.toml")  # same name, other parameters
-    again = _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet")
+    again = run_cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet")
     assert again.returncode == 0 and "1 finished run(s) were made from other scenario parameters" in again.stderr
     assert read_batch_csv(out, "batch_summary").sim_time_s.tolist() == [15.0]
     valid_scenario["sumo"] = {"extra_args": ["--bogus-option", "1"]}
     write_scenario(two_scenarios, valid_scenario, "light.toml")
-    assert _cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 1
+    assert run_cli("batch", str(two_scenarios / "light.toml"), "--out", str(out), "--quiet").returncode == 1
     page = write_report(out).read_text()
     assert not (out / "episodes.csv").exists() and not (out / "report" / "ego_speed.png").exists()
     assert "0 of 1 runs ok" in page and "alt='pair_timeline'" not in page
@@ -358,7 +353,7 @@ def test_batch_spec_errors_name_the_file_and_key(tmp_path):
     bad.write_text('[batch]\nscenarios = ["x.toml"]\nseeds = [1, 3000000000]\n')  # SUMO's seed is 32-bit
     with pytest.raises(Exception, match=r"b\.toml: batch\.seeds: expected a list of integers in \[0, 2147483647\]"):
         load_batch(bad)
-    proc = _cli("run", "scenarios/highway_dense.toml", "--seed", "3000000000")
+    proc = run_cli("run", "scenarios/highway_dense.toml", "--seed", "3000000000")
     assert proc.returncode == 2 and "--seed: expected an integer in [0, 2147483647]" in proc.stderr
     assert isinstance(BatchSpec, type)
 

@@ -10,20 +10,15 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
-from conftest import REPO, SCENARIOS, SHIPPED_SCENARIOS, write_scenario
+from conftest import REPO, SCENARIOS, SHIPPED_SCENARIOS, run_cli, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.runner import responsible_counts
 from sumo_rss.cli import main
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
-                          check=False)
-
-
 def test_run_writes_the_run_directory_with_fcd(tmp_path):
-    proc = _cli("run", str(SCENARIOS / "merge_onramp.toml"), "--seed", "3", "--duration", "40", "--out",
-                str(tmp_path), "--fcd", "--quiet")
+    proc = run_cli("run", str(SCENARIOS / "merge_onramp.toml"), "--seed", "3", "--duration", "40", "--out",
+                   str(tmp_path), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     run_dir = tmp_path / "merge_onramp" / "3"
     assert str(run_dir) in proc.stdout
@@ -64,12 +59,12 @@ def test_every_shipped_scenario_round_trips(tmp_path, name):
 
 @pytest.mark.parametrize("command", ["run", "batch", "audit", "report", "nets"])
 def test_every_command_has_help_with_examples(command):
-    proc = _cli(command, "--help")
+    proc = run_cli(command, "--help")
     assert proc.returncode == 0 and "examples:" in proc.stdout and f"sumo-rss {command}" in proc.stdout
 
 
 def test_version():
-    proc = _cli("--version")
+    proc = run_cli("--version")
     assert proc.returncode == 0 and proc.stdout.strip().startswith("sumo-rss 0.")
     # ``python -m sumo_rss.cli`` is the same command line (it ran nothing and exited 0).
     module = subprocess.run([sys.executable, "-m", "sumo_rss.cli", "--version"], capture_output=True, text=True,
@@ -95,7 +90,7 @@ def test_the_planners_own_rss_preset_is_written_beside_the_auditors_parameters(t
     """With ``[ego.planner] rss_preset`` the parameters the planner judged RSS with were written nowhere."""
     valid_scenario.update(duration_s=3.0)
     valid_scenario["ego"].update(controller="epsilon", planner={"rss_preset": "epsilon"})
-    proc = _cli("run", str(write_scenario(tmp_path, valid_scenario)), "--out", str(tmp_path), "--quiet")
+    proc = run_cli("run", str(write_scenario(tmp_path, valid_scenario)), "--out", str(tmp_path), "--quiet")
     assert proc.returncode == 0, proc.stderr
     run_dir = tmp_path / "scenario" / "1"
     planner = json.loads((run_dir / "planner.json").read_text())["rss_params"]
@@ -112,7 +107,7 @@ def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, v
     controllers as variants; a scenario without an ego is refused with a clear error."""
     valid_scenario["duration_s"] = 12.0
     scenario = write_scenario(tmp_path, valid_scenario, "hw.toml")
-    proc = _cli("run", str(scenario), "--controller", "epsilon", "--out", str(tmp_path / "one"), "--quiet")
+    proc = run_cli("run", str(scenario), "--controller", "epsilon", "--out", str(tmp_path / "one"), "--quiet")
     assert proc.returncode == 0, proc.stderr
     run_dir = tmp_path / "one" / "hw__controller=epsilon" / "1"
     assert str(run_dir) in proc.stdout
@@ -121,8 +116,8 @@ def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, v
     planner = json.loads((run_dir / "planner.json").read_text())
     assert planner["cycles"] >= 100  # the ego departs at 1 s and is planned for every step from then on
     assert "rss_params" not in planner  # it used the auditor's, those of rss_params.json
-    proc = _cli("batch", str(scenario), "--controller", "sumo", "mpdm", "--duration", "8", "--out",
-                str(tmp_path / "sweep"), "--quiet")
+    proc = run_cli("batch", str(scenario), "--controller", "sumo", "mpdm", "--duration", "8", "--out",
+                   str(tmp_path / "sweep"), "--quiet")
     assert proc.returncode == 0, proc.stderr
     for controller in ("sumo", "mpdm"):
         resolved = tmp_path / "sweep" / f"hw__controller={controller}" / "1" / "scenario.toml"
@@ -131,7 +126,7 @@ def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, v
     assert not (tmp_path / "sweep" / "hw__controller=sumo" / "1" / "planner.json").exists()
     del valid_scenario["ego"]
     no_ego = write_scenario(tmp_path, valid_scenario, "no_ego.toml")
-    proc = _cli("run", str(no_ego), "--controller", "epsilon", "--out", str(tmp_path / "none"))
+    proc = run_cli("run", str(no_ego), "--controller", "epsilon", "--out", str(tmp_path / "none"))
     assert proc.returncode == 2
     assert proc.stderr.strip() == f"sumo-rss: error: {no_ego}: ego: expected an [ego] table: the scenario has no ego " \
                                   "to drive"

@@ -3,32 +3,16 @@ with a warning; damage inside a file stays an error (test_rss_offline)."""
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import NETWORKS, REPO, SCENARIOS
+from conftest import NETWORKS, run_cli
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.fcd import FcdError, FcdReader, read_collisions
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 pytestmark = pytest.mark.filterwarnings("ignore:.*vType .* is not defined")  # the readers are given no route file
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
-                          check=False)
-
-
-@pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run")
-    proc = _cli("run", str(SCENARIOS / "highway_dense.toml"), "--duration", "40", "--out", str(out), "--fcd",
-                "--quiet")
-    assert proc.returncode == 0, proc.stderr
-    return out / "highway_dense" / "0"
 
 
 def _cut_points(text: str) -> dict[str, tuple[int, str]]:
@@ -41,8 +25,8 @@ def _cut_points(text: str) -> dict[str, tuple[int, str]]:
 
 
 @pytest.mark.parametrize("where", ["inside a vehicle", "after a time step"])
-def test_a_cut_fcd_gives_the_time_steps_before_the_cut(run_dir, tmp_path, where):
-    text = (run_dir / "fcd.xml").read_text()
+def test_a_cut_fcd_gives_the_time_steps_before_the_cut(dense_run, tmp_path, where):
+    text = (dense_run / "fcd.xml").read_text()
     offset, last = _cut_points(text)[where]
     cut = tmp_path / "cut.xml"
     cut.write_text(text[:offset])
@@ -50,12 +34,12 @@ def test_a_cut_fcd_gives_the_time_steps_before_the_cut(run_dir, tmp_path, where)
     with pytest.warns(UserWarning, match=rf"cut\.xml: the file breaks off after time step {float(last):g} s"):
         snapshots = list(FcdReader(cut, network))
     assert snapshots[-1].time == pytest.approx(float(last))
-    for part, whole in zip(snapshots, FcdReader(run_dir / "fcd.xml", network)):
+    for part, whole in zip(snapshots, FcdReader(dense_run / "fcd.xml", network)):
         assert part.time == whole.time and np.array_equal(part.ids, whole.ids) and np.array_equal(part.x, whole.x)
 
 
-def test_an_fcd_cut_inside_its_first_time_step_is_an_error(run_dir, tmp_path):
-    text = (run_dir / "fcd.xml").read_text()
+def test_an_fcd_cut_inside_its_first_time_step_is_an_error(dense_run, tmp_path):
+    text = (dense_run / "fcd.xml").read_text()
     cut = tmp_path / "cut.xml"
     cut.write_text(text[:text.index("</timestep>")])
     with pytest.raises(FcdError, match=r"cut\.xml: malformed or truncated FCD after time step 0\.0+ s"):
@@ -71,10 +55,10 @@ def test_a_cut_collision_file_gives_its_complete_records(tmp_path):
         assert [(c.time, c.collider) for c in read_collisions(path)] == [(3.1, "a")]
 
 
-def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(run_dir, tmp_path):
+def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(dense_run, tmp_path):
     """What `sumo-rss audit` writes for outputs cut off mid-record is what it writes for the same records with their
     end tags: every complete time step and collision is audited, and the command succeeds with a warning."""
-    text = (run_dir / "fcd.xml").read_text()
+    text = (dense_run / "fcd.xml").read_text()
     offset, last = _cut_points(text)["inside a vehicle"]
     kept = text[:text.index("</timestep>", text.index(f'<timestep time="{last}"')) + len("</timestep>\n")]
     collisions = ('<collisions>\n    <collision time="1.00" collider="x" victim="y" type="collision"/>\n')
@@ -84,9 +68,9 @@ def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(r
     (tmp_path / "closed_collisions.xml").write_text(collisions + "</collisions>\n")
     results = {}
     for name in ("cut", "closed"):
-        proc = _cli("audit", str(tmp_path / f"{name}.xml"), "--net", str(HIGHWAY), "--vtypes",
-                    str(run_dir / "routes.rou.xml"), "--collisions", str(tmp_path / f"{name}_collisions.xml"),
-                    "--out", str(tmp_path / name), "--quiet")
+        proc = run_cli("audit", str(tmp_path / f"{name}.xml"), "--net", str(HIGHWAY), "--vtypes",
+                       str(dense_run / "routes.rou.xml"), "--collisions", str(tmp_path / f"{name}_collisions.xml"),
+                       "--out", str(tmp_path / name), "--quiet")
         assert proc.returncode == 0, proc.stderr
         results[name] = proc
     assert f"cut.xml: the file breaks off after time step {float(last):g} s" in results["cut"].stderr

@@ -5,7 +5,6 @@ import gc
 import json
 import re
 import subprocess
-import sys
 import tomllib
 import tracemalloc
 import warnings
@@ -16,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import NETWORKS, REPO, SCENARIOS, write_scenario
+from conftest import NETWORKS, SCENARIOS, run_cli, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
@@ -30,24 +29,10 @@ from sumo_rss.sumo_home import sumo_tool
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sumo_rss", *args], capture_output=True, text=True, cwd=REPO,
-                          check=False)
-
-
-@pytest.fixture(scope="module")
-def dense_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dense")
-    proc = _cli("run", str(SCENARIOS / "highway_dense.toml"), "--duration", "60", "--out", str(out), "--fcd",
-                "--quiet")
-    assert proc.returncode == 0, proc.stderr
-    return out / "highway_dense" / "0"
-
-
 def test_online_and_offline_audits_of_one_run_give_identical_csvs(dense_run, tmp_path):
-    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
-                str(dense_run / "routes.rou.xml"), "--collisions", str(dense_run / "collisions.xml"), "--out",
-                str(tmp_path))
+    proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
+                   str(dense_run / "routes.rou.xml"), "--collisions", str(dense_run / "collisions.xml"), "--out",
+                   str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     episodes = (dense_run / "episodes.csv").read_bytes()
     assert episodes.count(b"\n") > 50  # dense traffic under ad_rss parameters: plenty of episodes to compare
@@ -110,8 +95,8 @@ def test_junction_contacts_are_found_from_the_footprints_without_sumos_collision
     scenario["demand"]["vtypes"]["car"]["car_follow_params"] = {
         "jmIgnoreFoeProb": 1.0, "jmIgnoreJunctionFoeProb": 1.0, "jmIgnoreFoeSpeed": 100.0,
         "jmDriveAfterRedTime": 100.0}
-    proc = _cli("run", str(write_scenario(tmp_path, scenario, "crash.toml")), "--duration", "30", "--out",
-                str(tmp_path / "out"), "--fcd", "--quiet")
+    proc = run_cli("run", str(write_scenario(tmp_path, scenario, "crash.toml")), "--duration", "30", "--out",
+                   str(tmp_path / "out"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "out" / "crash" / "0"
     live = pd.read_csv(run / "collisions.csv", keep_default_na=False)
@@ -189,30 +174,30 @@ def test_a_damaged_fcd_names_the_file_and_time_step(dense_run, tmp_path):
 
 def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
     merge = NETWORKS / "merge" / "merge.net.xml"
-    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(merge), "--out", str(tmp_path / "out"))
+    proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(merge), "--out", str(tmp_path / "out"))
     assert proc.returncode == 2
     (line,) = proc.stderr.strip().splitlines()
     assert "fcd.xml, time step 0.0 s: lanes not in merge.net.xml: hw0_" in line and "--net" in line
     assert not (tmp_path / "out").exists()  # nothing half-written
     not_fcd = tmp_path / "routes.xml"
     not_fcd.write_text((dense_run / "routes.rou.xml").read_text())
-    proc = _cli("audit", str(not_fcd), "--net", str(HIGHWAY))
+    proc = run_cli("audit", str(not_fcd), "--net", str(HIGHWAY))
     assert proc.returncode == 2 and "expected <fcd-export>" in proc.stderr
-    proc = _cli("audit", str(tmp_path / "nope.xml"), "--net", str(HIGHWAY))
+    proc = run_cli("audit", str(tmp_path / "nope.xml"), "--net", str(HIGHWAY))
     assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
     # A route file or a non-XML file given as the network is named as the network, not as a vType problem.
     (tmp_path / "junk.xml").write_text("hello")
     for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: expected a SUMO network (.net.xml) with "
                                                          "lanes, found none"),
                          (tmp_path / "junk.xml", "junk.xml: not a SUMO network (")):
-        proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(net), "--vtypes",
-                    str(dense_run / "routes.rou.xml"))
+        proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(net), "--vtypes",
+                       str(dense_run / "routes.rou.xml"))
         assert proc.returncode == 2 and message in proc.stderr and "vType" not in proc.stderr, proc.stderr
     # A value that is not a number names the vehicle and the attribute.
     bad = tmp_path / "bad_x.xml"
     bad.write_text('<fcd-export><timestep time="0.00"><vehicle id="car.7" x="abc" y="1" angle="90" speed="3" '
                    'lane="hw0_0" pos="5"/></timestep></fcd-export>')
-    proc = _cli("audit", str(bad), "--net", str(HIGHWAY), "--out", str(tmp_path / "out2"))
+    proc = run_cli("audit", str(bad), "--net", str(HIGHWAY), "--out", str(tmp_path / "out2"))
     assert proc.returncode == 2
     assert "bad_x.xml, time step 0.0 s: vehicle 'car.7': x: expected a finite number, got 'abc'" in proc.stderr, \
         proc.stderr
@@ -304,8 +289,8 @@ def test_unknown_vtypes_are_named_once_and_bad_vtypes_are_errors(dense_run, tmp_
     assert lengths == {5.0}  # SUMO's passenger size for every car of the file
     bad = tmp_path / "bad.rou.xml"
     bad.write_text('<routes><vType id="car" length="-1"/></routes>')
-    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(bad), "--out",
-                str(tmp_path / "out"))
+    proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(bad), "--out",
+                   str(tmp_path / "out"))
     assert proc.returncode == 2
     assert "sumo-rss: error: " in proc.stderr and "bad.rou.xml: SUMO cannot load the vTypes (Error: " in proc.stderr
 
@@ -344,12 +329,12 @@ def test_online_and_offline_audits_agree_at_a_signalised_junction(tmp_path):
     data["network"] = "intersection_tls"
     data["rss"] = {**data.get("rss", {}), "hold_standing": False}
     scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
-    proc = _cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path), "--fcd", "--quiet")
+    proc = run_cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "intersection_tls" / "0"
-    proc = _cli("audit", str(run / "fcd.xml"), "--net", str(NETWORKS / "intersection_tls" / "intersection_tls.net.xml"),
-                "--vtypes", str(run / "routes.rou.xml"), "--collisions", str(run / "collisions.xml"), "--out",
-                str(tmp_path / "offline"))
+    net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(net), "--vtypes", str(run / "routes.rou.xml"),
+                   "--collisions", str(run / "collisions.xml"), "--out", str(tmp_path / "offline"))
     assert proc.returncode == 0, proc.stderr
     episodes = (run / "episodes.csv").read_text()
     assert "intersection-priority" in episodes  # signal-decided situations were audited
@@ -368,7 +353,7 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
     data["network"] = "intersection_tls"
     data["sumo"] = {**data.get("sumo", {}), "extra_args": ["--additional-files", str(additional)]}
     scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
-    proc = _cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
+    proc = run_cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
     saved, program = SignalStates(net, states_file), SignalStates(net)
@@ -376,9 +361,9 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
     assert len({saved.states(t)["C"] for t in times}) >= 4  # the phases change within the run
     assert [t for t in times if saved.states(t) != program.states(t)] == []
     run = tmp_path / "online" / "intersection_tls" / "0"
-    proc = _cli("audit", str(run / "fcd.xml"), "--net", str(net), "--vtypes", str(run / "routes.rou.xml"),
-                "--collisions", str(run / "collisions.xml"), "--tls-states", str(states_file), "--out",
-                str(tmp_path / "offline"), "--hold-standing")  # as the scenario sets
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(net), "--vtypes", str(run / "routes.rou.xml"),
+                   "--collisions", str(run / "collisions.xml"), "--tls-states", str(states_file), "--out",
+                   str(tmp_path / "offline"), "--hold-standing")  # as the scenario sets
     assert proc.returncode == 0, proc.stderr
     assert "intersection-priority" in (run / "episodes.csv").read_text()
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
@@ -415,13 +400,13 @@ def test_hold_standing_is_the_same_online_and_offline_and_counts_fewer_queued_da
     data["network"] = "intersection_tls"
     data["rss"] = {**data.get("rss", {}), "hold_standing": True}
     scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
-    proc = _cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
+    proc = run_cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "online" / "intersection_tls" / "0"
     common = (str(run / "fcd.xml"), "--net", str(NETWORKS / "intersection_tls" / "intersection_tls.net.xml"),
               "--vtypes", str(run / "routes.rou.xml"), "--collisions", str(run / "collisions.xml"))
     for out, flags in (("held", ("--hold-standing",)), ("plain", ())):
-        proc = _cli("audit", *common, *flags, "--out", str(tmp_path / out))
+        proc = run_cli("audit", *common, *flags, "--out", str(tmp_path / out))
         assert proc.returncode == 0, proc.stderr
     for name in ("episodes.csv", "violations.csv", "collisions.csv"):
         assert (tmp_path / "held" / name).read_bytes() == (run / name).read_bytes(), name
@@ -439,8 +424,8 @@ def test_vtypes_and_routes_may_come_from_several_files(dense_run, tmp_path):
     (tmp_path / "cars.rou.xml").write_text('<routes><vehicle id="a" type="lorry" depart="0" route="main"/></routes>')
     info = read_vehicle_info([tmp_path / n for n in ("types.add.xml", "route.rou.xml", "cars.rou.xml")], HIGHWAY)
     assert info.sizes["lorry"] == (7.1, 2.4) and info.route_of("a") == ("hw0", "hw1", "hw2")
-    proc = _cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
-                f"{dense_run / 'routes.rou.xml'},{tmp_path / 'nope.xml'}", "--out", str(tmp_path / "out"))
+    proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes",
+                   f"{dense_run / 'routes.rou.xml'},{tmp_path / 'nope.xml'}", "--out", str(tmp_path / "out"))
     assert proc.returncode == 2 and "nope.xml: vType file not found" in proc.stderr
 
 
@@ -638,19 +623,19 @@ def test_audit_with_the_runs_scenario_applies_its_rss_overrides(tmp_path, valid_
     valid_scenario["rss"].update({"hold_standing": True, "background": {"response_time": 1.5},
                                   "vtypes": {"car": {"lon_brake_max": 7.0}}})
     del valid_scenario["ego"]
-    proc = _cli("run", str(write_scenario(tmp_path, valid_scenario)), "--fcd", "--out", str(tmp_path / "runs"),
-                "--quiet")
+    proc = run_cli("run", str(write_scenario(tmp_path, valid_scenario)), "--fcd", "--out", str(tmp_path / "runs"),
+                   "--quiet")
     assert proc.returncode == 0, proc.stderr
     run = tmp_path / "runs" / "scenario" / "1"
     common = (str(run / "fcd.xml"), "--net", str(HIGHWAY), "--vtypes", str(run / "routes.rou.xml"),
               "--collisions", str(run / "collisions.xml"))
-    proc = _cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--out", str(tmp_path / "same"))
+    proc = run_cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--out", str(tmp_path / "same"))
     assert proc.returncode == 0, proc.stderr
     for name in ("episodes.csv", "violations.csv", "collisions.csv", "rss_params.json"):
         assert (tmp_path / "same" / name).read_bytes() == (run / name).read_bytes(), name
-    assert _cli("audit", *common, "--out", str(tmp_path / "preset")).returncode == 0  # plain ad_rss differs
+    assert run_cli("audit", *common, "--out", str(tmp_path / "preset")).returncode == 0  # plain ad_rss differs
     assert (tmp_path / "preset" / "episodes.csv").read_bytes() != (run / "episodes.csv").read_bytes()
-    clash = _cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--hold-standing")
+    clash = run_cli("audit", *common, "--scenario", str(run / "scenario.toml"), "--hold-standing")
     assert clash.returncode == 2 and "--scenario sets the RSS parameters" in clash.stderr
 
 
