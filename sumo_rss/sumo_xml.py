@@ -54,6 +54,14 @@ def output_elements(path: Path, root_tag: str, tag: str,
             _, root = next(context)
         except StopIteration:
             raise ValueError("an empty file") from None
+        except MALFORMED as exc:  # a run killed before SUMO wrote more than the header comment
+            if not ends_cut(exc, source):
+                raise
+            warnings.warn(f"{path}: the file ends before its root element <{root_tag}> (cut off, as when SUMO is "
+                          f"killed while writing it): no <{tag}> records", stacklevel=3)
+            if on_cut is not None:
+                on_cut(0)
+            return
         if root.tag != root_tag:
             raise ValueError(f"root element <{root.tag}>, expected <{root_tag}>")
         try:

@@ -55,6 +55,17 @@ def test_a_cut_collision_file_gives_its_complete_records(tmp_path):
         assert [(c.time, c.collider) for c in read_collisions(path)] == [(3.1, "a")]
 
 
+def test_a_collision_file_cut_in_its_header_comment_has_no_records(tmp_path):
+    """SUMO writes its configuration as a comment first and the root element with the first record: a run killed
+    before any collision leaves the comment unclosed, which was 'not a readable collision-output file'."""
+    path = tmp_path / "collisions.xml"
+    path.write_text('<?xml version="1.0" encoding="UTF-8"?>\n\n<!-- generated on 2026-11-23 by Eclipse SUMO libsumo\n'
+                    '<libsumoConfiguration>\n    <input>\n')
+    with pytest.warns(UserWarning, match=r"collisions\.xml: the file ends before its root element <collisions> .*no "
+                                         r"<collision> records"):
+        assert read_collisions(path) == []
+
+
 def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(dense_run, tmp_path):
     """What `sumo-rss audit` writes for outputs cut off mid-record is what it writes for the same records with their
     end tags: every complete time step and collision is audited, and the command succeeds with a warning."""
