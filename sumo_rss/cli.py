@@ -168,9 +168,11 @@ def build_parser() -> argparse.ArgumentParser:
                             "dynamics (SUMO's vClass defaults where a vType leaves them out), routes (default: "
                             "SUMO's built-in vTypes only)")
     audit.add_argument("--collisions", type=Path,
-                       help="SUMO collision-output file (default: collisions from overlapping bounding boxes; a "
-                            "car that SUMO's default --collision.action teleport moves away never overlaps, so give "
-                            "the file or run sumo with --collision.action warn)")
+                       help="SUMO collision-output file (default: collisions from overlapping bounding boxes, "
+                            "which is not SUMO's own check: SUMO compares gaps along a lane with a share of minGap "
+                            "(--collision.mingap-factor) and junctions only with --collision.check-junctions; a car "
+                            "that SUMO's default --collision.action teleport moves away never overlaps. Give the file "
+                            "for SUMO's collisions)")
     audit.add_argument("--tls-states", type=Path,
                        help="SUMO signal-state file, written by an additional file holding <timedEvent "
                             "type=\"SaveTLSStates\" dest=\"tls.xml\"/>; default: the net's fixed-time programs "
