@@ -159,7 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     audit = sub.add_parser("audit", parents=[common], help="audit a SUMO FCD file offline",
                            description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
-                                       "write episodes.csv, violations.csv, collisions.csv and rss_params.json.",
+                                       "write episodes.csv, violations.csv, collisions.csv and rss_params.json. "
+                                       "Ctrl-C (or SIGTERM) ends the audit after the current time step and "
+                                       "writes it up to there (exit code 130); a second Ctrl-C aborts.",
                            epilog=_AUDIT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     audit.add_argument("fcd", type=Path, help="SUMO FCD file (sumo --fcd-output)")
     audit.add_argument("--net", type=Path, required=True, help="the SUMO network of the run (.net.xml)")
@@ -248,7 +250,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         # Runs with another controller go to their own folder, as in a batch sweep, not over the scenario's run.
         variant = variant_name({"controller": args.controller}) if args.controller else ""
-        stop = _StopRequest()
+        stop = _StopRequest("the run")
         signal.signal(signal.SIGINT, stop.request)
         signal.signal(signal.SIGTERM, stop.request)
         summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step,
@@ -262,11 +264,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 class _StopRequest:
-    """Ctrl-C (or SIGTERM) during ``run``: the first ends the run after the current step, its results written up to
-    there; the second aborts at once (nothing is written)."""
+    """Ctrl-C (or SIGTERM) during ``run`` or ``audit``: the first ends the work after the current step, its results
+    written up to there; the second aborts at once (nothing is written)."""
 
-    def __init__(self) -> None:
+    def __init__(self, work: str) -> None:
         self.requested = False
+        self._work = work
 
     def request(self, signum: int, frame: object) -> None:
         from tqdm import tqdm
@@ -274,7 +277,7 @@ class _StopRequest:
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
-        tqdm.write("sumo-rss: stopping after this step and writing the run up to it (Ctrl-C again: abort, "
+        tqdm.write(f"sumo-rss: stopping after this step and writing {self._work} up to it (Ctrl-C again: abort, "
                    "nothing written)", file=sys.stderr)
 
     def __call__(self) -> bool:
@@ -379,14 +382,18 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         def on_progress(done: int) -> None:
             bar.update(done - bar.n)
 
+        stop = _StopRequest("the audit")
+        signal.signal(signal.SIGINT, stop.request)
+        signal.signal(signal.SIGTERM, stop.request)
         result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                            collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress)
-        on_progress(bar.total)  # read to its end
+                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop)
+        if not stop.requested:
+            on_progress(bar.total)  # read to its end
     result.to_csv(args.out)
-    print(f"{len(result.episodes)} episodes, {len(result.violations)} violations, {len(result.collisions)} "
-          f"collisions -> {args.out}")
-    return 0
+    print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
+          f"violations, {len(result.collisions)} collisions -> {args.out}")
+    return EXIT_INTERRUPTED if stop.requested else 0
 
 
 def _cmd_nets(args: argparse.Namespace) -> int:

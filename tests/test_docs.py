@@ -94,6 +94,6 @@ def test_the_documented_python_api_exists_with_the_documented_parameters():
                              ("run_batch", "tasks out_dir executor progress"),
                              ("Auditor", "network params run_id trace_class signal_rule"),
                              ("audit_fcd", "fcd network params vehicles collisions tls_states ego_ids run_id "
-                                           "signal_rule on_progress"),
+                                           "signal_rule on_progress stop"),
                              ("EpsilonPlanner", "network params config")):
         assert list(inspect.signature(resolved[name]).parameters) == parameters.split(), name

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from conftest import NETWORKS, run_cli
@@ -113,3 +114,28 @@ def test_fcd_steps_after_a_cut_signal_state_file_are_named(tmp_path):
     with pytest.warns(UserWarning, match=r"tls\.xml: the signal states break off at 0\.2 s; the time steps of "
                                          r".*fcd\.xml after it \(to 0\.4 s\) were audited with the states at 0\.2 s"):
         audit_fcd(tmp_path / "fcd.xml", RoadNetwork.from_file(net), ParamResolver(), tls_states=states)
+
+
+def test_an_audit_stopped_after_a_step_equals_the_audit_of_the_file_ending_there(dense_run, tmp_path):
+    """Ctrl-C on 'sumo-rss audit' (its stop request) ends the audit after the current step; what it writes is the
+    audit of the same file ending at that step."""
+    from sumo_rss.rss.auditor import ParamResolver
+    from sumo_rss.rss.fcd import audit_fcd, read_vehicle_info
+
+    network = RoadNetwork.from_file(HIGHWAY)
+    vehicles = read_vehicle_info(dense_run / "routes.rou.xml", HIGHWAY)
+    asked = []
+
+    def stop() -> bool:
+        asked.append(True)
+        return len(asked) == 250  # after the step at 24.9 s
+
+    with pytest.warns(UserWarning, match=r"fcd\.xml: stopped after time step 24\.9 s: audited up to there"):
+        stopped = audit_fcd(dense_run / "fcd.xml", network, ParamResolver(), vehicles=vehicles, stop=stop)
+    text = (dense_run / "fcd.xml").read_text()
+    end = text.index("</timestep>", re.search(r'<timestep time="24\.90*"', text).start()) + len("</timestep>\n")
+    (tmp_path / "closed.xml").write_text(text[:end] + "</fcd-export>\n")
+    closed = audit_fcd(tmp_path / "closed.xml", network, ParamResolver(), vehicles=vehicles)
+    assert len(asked) == 250 and len(closed.episodes) > 20
+    for name in ("episodes", "violations", "collisions"):
+        pd.testing.assert_frame_equal(getattr(stopped, name), getattr(closed, name))

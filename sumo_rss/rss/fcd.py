@@ -400,13 +400,14 @@ class FcdReader:
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
-              run_id: str = "", signal_rule: bool = True,
-              on_progress: Callable[[int], None] | None = None) -> AuditResult:
+              run_id: str = "", signal_rule: bool = True, on_progress: Callable[[int], None] | None = None,
+              stop: Callable[[], bool] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
-    how much of the FCD file (its size on disk) has been read."""
+    how much of the FCD file (its size on disk) has been read. ``stop()`` is asked after every time step: True ends
+    the audit there, as if the file ended there (with a warning that names the step)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -426,11 +427,13 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         if absent:
             absent.difference_update(snapshot.ids.tolist())
         if reports is not None:
-            new = contacts.step(reports.take_until(snapshot.time))
-            auditor.observe(snapshot, new)
-            continue
-        found = overlap_contacts(snapshot, auditor.observe(snapshot), network)
-        auditor.record_collisions(contacts.step(found))
+            auditor.observe(snapshot, contacts.step(reports.take_until(snapshot.time)))
+        else:
+            found = overlap_contacts(snapshot, auditor.observe(snapshot), network)
+            auditor.record_collisions(contacts.step(found))
+        if stop is not None and stop():
+            warnings.warn(f"{fcd}: stopped after time step {snapshot.time:g} s: audited up to there", stacklevel=2)
+            return auditor.finish()
     if not steps:
         warnings.warn(f"{fcd}: no <timestep> in the file: nothing to audit", stacklevel=2)
     elif signals.known_until is not None and snapshot.time > signals.known_until + STEP_TIME_TOLERANCE:
