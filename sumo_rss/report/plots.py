@@ -9,7 +9,6 @@ import pandas as pd  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from ..sim.snapshot import EGO_CLASS  # noqa: E402
-
 from .summary import EGO_CATEGORIES, RESPONSIBILITY_CATEGORIES  # noqa: E402
 
 COLOURS = {"ego": "#d62728", "ego & background": "#9467bd", "background": "#1f77b4", "none": "#bbbbbb"}
