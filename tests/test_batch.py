@@ -427,6 +427,7 @@ def test_ctrl_c_or_sigterm_ends_a_single_run_early_with_its_results(two_scenario
 def test_a_second_signal_aborts_a_single_run_without_results(two_scenarios, tmp_path):
     out = tmp_path / "out"
     proc = _start_run(two_scenarios / "light.toml", out)
+    time.sleep(3.0)  # stepping (two signals at once while SUMO loads have been seen to count as one)
     proc.send_signal(signal.SIGTERM)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
