@@ -41,17 +41,28 @@ def test_documented_constraints_and_situations_exist():
 
 
 def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypatch):
-    """docs/extending.md's example, shortened to 40 s (the ego departs at 30 s) and written to tmp_path."""
+    """docs/extending.md's example, run for 150 s (the ego departs at 30 s and drives through the 875 m curve) and
+    written to tmp_path. It follows its lane (an earlier example moved straight on along its heading and left the
+    road in the curve, silently), and its run does not take the folder of the scenario's own run."""
+    import warnings
+
+    import pandas as pd
+
     text = (REPO / "docs" / "extending.md").read_text(encoding="utf-8")
     code = text.split("```python\n", 1)[1].split("```", 1)[0]
-    code = code.replace('Path("results/custom")', f"Path({str(tmp_path)!r})").replace("60.0", "40.0")
-    assert code.count(str(tmp_path)) == 1 and "40.0" in code
+    code = code.replace('Path("results/custom")', f"Path({str(tmp_path)!r})").replace("60.0", "150.0")
+    assert code.count(str(tmp_path)) == 1 and "150.0" in code
     namespace: dict = {}
     monkeypatch.chdir(REPO)
-    exec(compile(code, "extending.md", "exec"), namespace)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*left the road")
+        exec(compile(code, "extending.md", "exec"), namespace)
     summary = namespace["summary"]
     assert summary.ego_controller == "custom" and summary.ego_mean_speed_ms > 0
-    run = tmp_path / "highway_dense" / "0"
+    run = tmp_path / "highway_dense__controller=custom" / "0"
+    assert not (tmp_path / "highway_dense").exists()
+    trace = pd.read_csv(run / "ego_trace.csv")
+    assert trace.lane_id.str.startswith("hw1").any() and trace.lat_pos_m.abs().max() < 0.3
     assert json.loads((run / "summary.json").read_text())["ego_controller"] == "custom"
     assert not (run / "planner.json").exists()  # the example has no summary()
     # The run records its controller: its hash is not the scenario's own, so a batch never adopts it, and its
@@ -63,9 +74,9 @@ def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypat
     manifest = json.loads((run / "manifest.json").read_text())
     assert manifest["custom_controller"] == "builtins.RssFollower"
     spec = namespace["spec"]
-    assert manifest["parameter_hash"] == Task(spec, "").parameter_hash("builtins.RssFollower") != \
-        Task(spec, "").parameter_hash()
-    assert not _finished(tmp_path, Task(spec, ""))
+    custom = Task(spec, "controller=custom")
+    assert manifest["parameter_hash"] == custom.parameter_hash("builtins.RssFollower") != custom.parameter_hash()
+    assert not _finished(tmp_path, custom)
     assert (run / "scenario.toml").read_text().startswith("# The ego was driven by the Python controller")
     assert load_scenario(run / "scenario.toml").to_toml_data() == spec.to_toml_data()
 

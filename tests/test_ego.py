@@ -220,3 +220,20 @@ def test_an_own_loop_passes_the_sessions_new_collisions_to_the_audit():
     assert ego_hits and len(result.collisions) == len(session.collisions)
     closed = result.episodes[result.episodes.collision]
     assert {(c.collider, c.victim) for c in ego_hits} <= set(zip(closed.collider, closed.victim))
+
+
+def test_an_ego_placed_off_every_lane_leaving_the_road_is_named(valid_scenario, tmp_path):
+    """A controller that placed the ego away from the road (an example that did not steer, in a curve) lost it
+    silently: it left the snapshots, was neither driven nor audited any more, and the run still said ok."""
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    with Session(spec) as session:
+        while not session.ego_on_road:
+            session.step()
+        snap = session.snapshot
+        k = snap.index_of(spec.ego.id)
+        session.place_ego(TrajectoryState(float(snap.x[k]), float(snap.y[k]) + 200.0, float(snap.heading[k]),
+                                          float(snap.speed[k]), 0.0))
+        with pytest.warns(UserWarning, match=rf"the ego '{spec.ego.id}' left the road at t = "
+                                             rf"{session.time + spec.step_s:.2f} s without arriving"):
+            session.step()
+    assert not session.ego_on_road

@@ -32,7 +32,7 @@ from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from ..trajectory import TrajectoryState
-from .spec import Task
+from .spec import Task, variant_name
 
 SUMMARY_FILE = "summary.json"
 PLANNER_FILE = "planner.json"
@@ -114,8 +114,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
 
     The run is built in a temporary sibling folder and renamed into place only when complete, so a run
     directory either holds a whole run or does not exist. ``on_step(simulated_s)`` is called after every step.
-    ``controller`` drives the ego instead of the scenario's ``ego.controller`` (recorded as 'custom'); its
-    ``summary()`` dict, if it has one, is written as planner.json. ``stop()`` is asked after every step: True
+    ``controller`` drives the ego instead of the scenario's ``ego.controller`` (recorded as 'custom'; without a
+    ``variant`` the run is the variant 'controller=custom', so it never takes the folder of the scenario's own run);
+    its ``summary()`` dict, if it has one, is written as planner.json. ``stop()`` is asked after every step: True
     ends the run there, and it is written as a whole run of that length with status 'interrupted' (a batch
     runs it again).
     """
@@ -128,6 +129,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             raise TypeError(f"controller: expected an object with a method command(snapshot, auditor) -> "
                             f"TrajectoryState (sumo_rss.batch.runner.EgoController), got {controller!r}")
         custom = f"{type(controller).__module__}.{type(controller).__qualname__}"
+        variant = variant or variant_name({"controller": "custom"})
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
 
     task = Task(spec, variant)

@@ -10,6 +10,7 @@ import math
 import shutil
 import signal
 import tempfile
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -225,11 +226,17 @@ class Session:
         time = (libsumo.simulation.getCurrentTime() - self._step_ms) / 1000.0
         for vid in libsumo.simulation.getDepartedIDList():
             self._on_depart(vid)
-        for vid in libsumo.simulation.getArrivedIDList():
+        arrived = libsumo.simulation.getArrivedIDList()
+        for vid in arrived:
             self._static.pop(vid, None)
         self.teleports += libsumo.simulation.getStartingTeleportNumber()
         self._record_collisions(time)
+        was_on_road = self.ego_on_road
         self.snapshot = self._build_snapshot(time)
+        if was_on_road and not self.ego_on_road and self.ego_id not in arrived:
+            warnings.warn(f"{self.spec.source}: the ego {self.ego_id!r} left the road at t = {time:.2f} s without "
+                          "arriving (a command placed it off every lane, or SUMO teleported it); it is neither "
+                          "driven nor audited while off the road", stacklevel=2)
         self.peak_vehicles = max(self.peak_vehicles, len(self.snapshot))
         return self.snapshot
 
