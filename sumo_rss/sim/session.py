@@ -48,7 +48,7 @@ _active: Session | None = None
 def _signals_held() -> Iterator[None]:
     """Ctrl-C and SIGTERM wait until the block ends, then Python's handlers get them. Arriving while SUMO loaded
     (``libsumo.start``), the second of two quick signals was lost in about 1 of 12 tries; held, in none of 36 on a
-    quiet machine (under a full test suite's load two at once can still count as one)."""
+    quiet machine. (Two sent at once can still count as one under a heavy load, also while SUMO steps: 1 in 16.)"""
     before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
     try:
         yield
