@@ -8,6 +8,7 @@ straight ahead and behind it).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -47,9 +48,7 @@ class LaneShapes:
         if s_hint is None:
             seg_idx = np.broadcast_to(np.arange(self.points.shape[1] - 1), (lane.shape[0], self.points.shape[1] - 1))
         else:
-            centre = (self.cumulative[lane] <= np.asarray(s_hint, dtype=float)[:, None]).sum(axis=1) - 1
-            centre = np.clip(centre, 0, n_seg - 1)
-            seg_idx = centre[:, None] + np.arange(-window, window + 1)[None, :]
+            seg_idx = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
         real = (seg_idx >= 0) & (seg_idx < n_seg[:, None])
         seg_idx = np.clip(seg_idx, 0, self.points.shape[1] - 2)
         p = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)[:, None, :]
@@ -77,8 +76,7 @@ class LaneShapes:
         :meth:`project`; beyond a lane's ends along its first or last segment's extension)."""
         lane = np.asarray(lane, dtype=int)
         s = np.asarray(s, dtype=float)
-        n_seg = self.count[lane] - 1
-        k = np.clip((self.cumulative[lane] <= s[:, None]).sum(axis=1) - 1, 0, n_seg - 1)
+        k = self._segment_at(lane, s)
         start = self.points[lane, k]
         seg = self.points[lane, k + 1] - start
         unit = seg / np.linalg.norm(seg, axis=1)[:, None]
@@ -90,8 +88,12 @@ class LaneShapes:
     def heading_at(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Heading [rad] of lanes ``lane`` at distances ``s`` [m] along them."""
         lane = np.asarray(lane, dtype=int)
-        cum = self.cumulative[lane]
-        n_seg = self.count[lane] - 1
-        k = np.clip((cum <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1, 0, n_seg - 1)
+        k = self._segment_at(lane, s)
         seg = self.points[lane, k + 1] - self.points[lane, k]  # [n, 2]
         return np.arctan2(seg[:, 1], seg[:, 0])
+
+    def _segment_at(self, lane: np.ndarray, s: Any) -> np.ndarray:
+        """Index of the segment of lanes ``lane`` (indices) that holds the distances ``s`` [m] along them (the first
+        or last one beyond a lane's ends)."""
+        k = (self.cumulative[lane] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
+        return np.clip(k, 0, self.count[lane] - 2)
