@@ -250,9 +250,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         # Runs with another controller go to their own folder, as in a batch sweep, not over the scenario's run.
         variant = variant_name({"controller": args.controller}) if args.controller else ""
-        stop = _StopRequest("the run")
-        signal.signal(signal.SIGINT, stop.request)
-        signal.signal(signal.SIGTERM, stop.request)
+        stop = _StopRequest.on_signals("the run")
         summary = run_one(spec, args.out, variant=variant, fcd=True if args.fcd else None, on_step=on_step,
                           stop=stop)
     ended = f"interrupted at {summary.sim_time_s:g} s: " if summary.status == "interrupted" else ""
@@ -270,6 +268,14 @@ class _StopRequest:
     def __init__(self, work: str) -> None:
         self.requested = False
         self._work = work
+
+    @classmethod
+    def on_signals(cls, work: str) -> _StopRequest:
+        """A request that Ctrl-C and SIGTERM make from now on."""
+        stop = cls(work)
+        signal.signal(signal.SIGINT, stop.request)
+        signal.signal(signal.SIGTERM, stop.request)
+        return stop
 
     def request(self, signum: int, frame: object) -> None:
         from tqdm import tqdm
@@ -382,9 +388,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         def on_progress(done: int) -> None:
             bar.update(done - bar.n)
 
-        stop = _StopRequest("the audit")
-        signal.signal(signal.SIGINT, stop.request)
-        signal.signal(signal.SIGTERM, stop.request)
+        stop = _StopRequest.on_signals("the audit")
         result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                            collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
                            run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop)

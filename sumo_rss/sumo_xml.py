@@ -47,24 +47,16 @@ def output_elements(path: Path, root_tag: str, tag: str,
     """The ``tag`` elements of the SUMO output ``path``, whose root must be ``root_tag``; ValueError naming the
     root found otherwise, one of MALFORMED for a damaged file. A cut file (:func:`ends_cut`) gives its complete
     elements, with a warning; ``on_cut(number of complete elements)`` is called then too."""
-    count = 0
+    count, root = 0, None
     with open_output(path) as source:
         context = ET.iterparse(source, events=("start", "end"))
         try:
-            _, root = next(context)
-        except StopIteration:
-            raise ValueError("an empty file") from None
-        except MALFORMED as exc:  # a run killed before SUMO wrote more than the header comment
-            if not ends_cut(exc, source):
-                raise
-            warnings.warn(f"{path}: the file ends before its root element <{root_tag}> (cut off, as when SUMO is "
-                          f"killed while writing it): no <{tag}> records", stacklevel=3)
-            if on_cut is not None:
-                on_cut(0)
-            return
-        if root.tag != root_tag:
-            raise ValueError(f"root element <{root.tag}>, expected <{root_tag}>")
-        try:
+            try:
+                _, root = next(context)
+            except StopIteration:
+                raise ValueError("an empty file") from None
+            if root.tag != root_tag:
+                raise ValueError(f"root element <{root.tag}>, expected <{root_tag}>")
             for event, elem in context:
                 if event == "end" and elem.tag == tag:
                     count += 1
@@ -73,7 +65,10 @@ def output_elements(path: Path, root_tag: str, tag: str,
         except MALFORMED as exc:
             if not ends_cut(exc, source):
                 raise
-            warnings.warn(f"{path}: the file ends before its end tag </{root_tag}> (cut off, as when SUMO is "
-                          f"killed while writing it): read its {count} complete <{tag}> records", stacklevel=3)
+            # Before the root: a run killed before SUMO wrote more than the header comment.
+            where, read = (f"before its root element <{root_tag}>", f"no <{tag}> records") if root is None else \
+                (f"before its end tag </{root_tag}>", f"read its {count} complete <{tag}> records")
+            warnings.warn(f"{path}: the file ends {where} (cut off, as when SUMO is killed while writing it): {read}",
+                          stacklevel=3)
             if on_cut is not None:
                 on_cut(count)

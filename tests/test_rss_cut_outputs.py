@@ -10,7 +10,9 @@ import pytest
 
 from conftest import NETWORKS, run_cli
 from sumo_rss.road.network import RoadNetwork
-from sumo_rss.rss.fcd import FcdError, FcdReader, read_collisions
+from sumo_rss.rss.auditor import ParamResolver
+from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, read_collisions, read_vehicle_info
+from sumo_rss.rss.signals import SignalStates
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 pytestmark = pytest.mark.filterwarnings("ignore:.*vType .* is not defined")  # the readers are given no route file
@@ -96,10 +98,6 @@ def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(d
 def test_fcd_steps_after_a_cut_signal_state_file_are_named(tmp_path):
     """A signal-state file that breaks off (SUMO killed: its buffer reached the disk before the FCD's last one) left
     the later time steps audited with its last states without a word."""
-    from sumo_rss.rss.auditor import ParamResolver
-    from sumo_rss.rss.fcd import audit_fcd
-    from sumo_rss.rss.signals import SignalStates
-
     net = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
     states = tmp_path / "tls.xml"
     states.write_text('<tlsStates>\n' + "".join(f'    <tlsState time="{t:.2f}" id="C" programID="0" phase="0" '
@@ -119,9 +117,6 @@ def test_fcd_steps_after_a_cut_signal_state_file_are_named(tmp_path):
 def test_an_audit_stopped_after_a_step_equals_the_audit_of_the_file_ending_there(dense_run, tmp_path):
     """Ctrl-C on 'sumo-rss audit' (its stop request) ends the audit after the current step; what it writes is the
     audit of the same file ending at that step."""
-    from sumo_rss.rss.auditor import ParamResolver
-    from sumo_rss.rss.fcd import audit_fcd, read_vehicle_info
-
     network = RoadNetwork.from_file(HIGHWAY)
     vehicles = read_vehicle_info(dense_run / "routes.rou.xml", HIGHWAY)
     asked = []

@@ -27,12 +27,10 @@ class RecordTable:
         self._rows: list[tuple] = []
         self._chunks: list[pd.DataFrame] = []
         self._strings: dict[str, str] = {}
-        self._count = 0
 
     def append(self, record: Mapping[str, object]) -> None:
         """Add one row (a mapping with at least every column)."""
         self._rows.append(tuple(self._shared(record[c]) for c in self.columns))
-        self._count += 1
         if len(self._rows) >= self.chunk_rows:
             self._chunks.append(self._frame(self._rows))
             self._rows, self._strings = [], {}
@@ -50,7 +48,7 @@ class RecordTable:
         return pd.concat(parts, ignore_index=True)
 
     def __len__(self) -> int:
-        return self._count
+        return len(self._chunks) * self.chunk_rows + len(self._rows)  # every chunk holds chunk_rows rows
 
     def _shared(self, value: object) -> object:
         return self._strings.setdefault(value, value) if isinstance(value, str) else value
