@@ -220,7 +220,7 @@ def test_recorded_data_is_reused_only_from_the_same_scenario_files_and_no_sample
     for _ in range(2):  # the second run reuses both datasets
         train_intent(plan, out, TrainSettings(epochs=1), reuse_data=True, show_progress=False)
     assert recorded == [(0,), (100,)]
-    scenario.write_text(scenario.read_text().replace("veh_per_hour = 600", "veh_per_hour = 900"))  # same name
+    scenario.write_text(scenario.read_text().replace("probability = 0.166667", "probability = 0.25"))  # same name
     train_intent(plan, out, TrainSettings(epochs=1), reuse_data=True, show_progress=False)
     assert recorded == [(0,), (100,)] * 2
     highway = DataPlan((SCENARIOS / "highway_dense.toml",), (0,), (100,), 20.0)

@@ -4,14 +4,14 @@ behaviour trajectory alone is compared in its own smoke test) in 20 seeds each o
 
 Acceptance (issue 5): no collision involving the ego, the auditor never finds the ego responsible, the ego
 changes lanes on the highway, and from the ramp it merges onto the motorway before the acceleration lane ends.
-Runs are cut short (highway: 60 s of planner driving; merge: until 240 s).
+The highway runs are cut short (60 s of planner driving); the merge runs last the scenario's 300 s.
 
-The 20-seed runs take ~20 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``; each
-scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) is asserted
-strictly. Lane changes and merging within 240 s are xfail: under ad_rss a change needs an RSS-safe gap of
-~170-230 m in the target lane, which dense traffic rarely offers (see issue 5's notes), and the ego then keeps
-its lane or waits at the end of the acceleration lane (measured 2026-11-21 with SSC: 19 of 20 ramp runs merge by
-240 s; no lane change completed in 20 highway runs). The suite always
+The 20-seed runs take ~30 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``; each
+scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) and merging are
+asserted strictly: merge_onramp's arrivals are random, and the ego merges in every seed (with evenly spaced
+arrivals seed 13 never found an RSS gap, docs/scenarios.md). Lane changes on highway_dense are xfail: under
+ad_rss a change needs an RSS-safe gap of ~180 m at 25 m/s (89 m each side) in the target lane, and at
+2000 veh/h per lane the traffic leaves ~45 m (no lane change completed in 20 highway runs). The suite always
 runs a 2-seed smoke version: no ego collision, never responsible, the planner drives every step, the ego gets onto
 the acceleration lane and never past its end.
 """
@@ -39,7 +39,7 @@ SMOKE_SEEDS = range(2)
 ACCELERATION_LANE = "mw_merge_0"
 acceptance = pytest.mark.skipif(os.environ.get("SUMO_RSS_ACCEPTANCE") != "1",
                                 reason="20-seed acceptance runs: set SUMO_RSS_ACCEPTANCE=1 (make acceptance)")
-not_met_yet = pytest.mark.xfail(reason="issue 5: dense traffic rarely offers an RSS-safe gap under ad_rss (see the "
+not_met_yet = pytest.mark.xfail(reason="issue 5: at 2000 veh/h per lane no gap is RSS-safe under ad_rss (see the "
                                        "issue note)", strict=False)
 
 
@@ -153,7 +153,8 @@ def highway_runs(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def merge_runs(tmp_path_factory):
-    return _epsilon_batch("merge_onramp", 240.0, tmp_path_factory.mktemp("merge"), ACCEPTANCE_SEEDS)
+    duration = load_scenario(SCENARIOS / "merge_onramp.toml").duration_s
+    return _epsilon_batch("merge_onramp", duration, tmp_path_factory.mktemp("merge"), ACCEPTANCE_SEEDS)
 
 
 @acceptance
@@ -182,7 +183,6 @@ def test_epsilon_ego_changes_lanes_on_the_dense_highway(highway_runs):
 
 
 @acceptance
-@not_met_yet
 @pytest.mark.slow
 def test_epsilon_ego_merges_from_the_ramp_before_the_lane_ends(merge_runs):
     for task, folder in merge_runs:
