@@ -30,7 +30,7 @@ run: install
 test: install
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
-acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios on 2 processes, ~20 CPU minutes)
+acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios on 2 processes, ~12 minutes)
 	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_closed_loop.py -rxX
 
 bench: install

@@ -6,14 +6,14 @@ Acceptance (issue 5): no collision involving the ego, the auditor never finds th
 changes lanes on the highway, and from the ramp it merges onto the motorway before the acceleration lane ends.
 The highway runs are cut short (60 s of planner driving); the merge runs last the scenario's 300 s.
 
-The 20-seed runs take ~30 CPU minutes, so they run only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``; each
-scenario's batch runs once and feeds its tests). Safety (no ego collision, never responsible) and merging are
-asserted strictly: merge_onramp's arrivals are random, and the ego merges in every seed (with evenly spaced
-arrivals seed 13 never found an RSS gap, docs/scenarios.md). Lane changes on highway_dense are xfail: under
-ad_rss a change needs an RSS-safe gap of ~180 m at 25 m/s (89 m each side) in the target lane, and at
-2000 veh/h per lane the traffic leaves ~45 m (no lane change completed in 20 highway runs). The suite always
-runs a 2-seed smoke version: no ego collision, never responsible, the planner drives every step, the ego gets onto
-the acceleration lane and never past its end.
+The 20-seed runs take ~25 CPU minutes (11.5 min on 2 cores), so they run only with SUMO_RSS_ACCEPTANCE=1
+(``make acceptance``; each scenario's batch runs once and feeds its tests). Safety (no ego collision, never
+responsible) and merging are asserted strictly: merge_onramp's arrivals are random, and the ego merges in every
+seed (with evenly spaced arrivals seed 13 never found an RSS gap, docs/scenarios.md). Lane changes on
+highway_dense are xfail: under ad_rss a change needs an RSS-safe gap of ~180 m at 25 m/s (89 m each side) in the
+target lane, and at 2000 veh/h per lane the traffic leaves ~45 m (no lane change completed in 20 highway runs).
+The suite always runs a 2-seed smoke version: no ego collision, never responsible, the planner drives every step,
+the ego gets onto the acceleration lane and never past its end.
 """
 from __future__ import annotations
 
