@@ -125,6 +125,35 @@ def test_the_deceleration_that_avoids_a_car_ahead_by_hand(gap, v_lead, b_lead, e
         pytest.approx(expected, rel=1e-6)
 
 
+def _least_gap_braking(gap: float, v: float, v_lead: float, b_lead: float, a: float) -> float:
+    """[m] The least gap over time, both cars braking to a stand (the follower at ``a``), from the motion
+    equations sampled finely up to when the follower stands (the gap grows after that)."""
+    t = np.linspace(0.0, v / a, 200001)
+    own = v * t - 0.5 * a * t * t
+    lead_t = np.minimum(t, v_lead / b_lead) if b_lead > 0.0 else t  # the leader stands from v_lead / b_lead on
+    lead = v_lead * lead_t - 0.5 * b_lead * lead_t * lead_t
+    return float(np.min(gap + lead - own))
+
+
+def test_the_deceleration_that_avoids_a_car_ahead_is_the_least_that_does():
+    """Random cases against the motion itself: braking at the answer the gap stays open (to the sampling's
+    precision), braking 1 % less it closes; an answer of 0 means coasting never reaches the car."""
+    rng = np.random.default_rng(7)
+    cases = np.column_stack([rng.uniform(0.0, 80.0, 60), rng.uniform(0.5, 35.0, 60),
+                             rng.uniform(0.0, 35.0, 60) * rng.integers(0, 2, 60),
+                             rng.uniform(0.0, 9.0, 60) * rng.integers(0, 2, 60)])
+    checked = 0
+    for gap, v, v_lead, b_lead in cases:
+        a = float(avoiding_decel(np.array([gap]), v, np.array([v_lead]), np.array([b_lead]))[0])
+        if a == 0.0:
+            assert v <= v_lead and b_lead == 0.0 or _least_gap_braking(gap, v, v_lead, b_lead, 1e-3) >= -1e-6
+            continue
+        assert _least_gap_braking(gap, v, v_lead, b_lead, a) >= -1e-3 * v
+        assert _least_gap_braking(gap, v, v_lead, b_lead, 0.99 * a) < 0.0
+        checked += 1
+    assert checked > 20
+
+
 def test_emergency_braking_up_to_b_max_where_b_min_would_hit_the_car_ahead(frame):
     """A car that cut in 30 m ahead of the ego and brakes at 8 m/s² from 25 m/s: the ego owes it no braking
     (rss.md §5: the lateral response), but braking at b_min would hit it; it brakes as hard as avoiding it needs

@@ -34,6 +34,7 @@ STOPPED = 0.05  # [m/s]
 COUNT_TOLERANCE = 1e-3  # [m/s] smaller lateral corrections are made but not counted as interventions
 NEIGHBOURHOOD = 150.0  # [m] other cars farther than this are ignored
 EMERGENCY_GAP = 1.0  # [m] emergency braking stops the ego this far behind the car ahead
+MIN_DECEL, MAX_DECEL = 1e-3, 1e3  # [m/s²] avoiding_decel's range
 PREDICTION_ITERATIONS = 3  # fixed-point steps for the speed that is RSS-safe at the next step (converge ~10x each)
 
 
@@ -56,30 +57,22 @@ class GuardCounts:
 
 def avoiding_decel(gap: np.ndarray, v: float, v_lead: np.ndarray, b_lead: np.ndarray) -> np.ndarray:
     """[m/s²] The least constant deceleration that keeps a car at ``v`` [m/s] from reaching a car ``gap`` [m] ahead
-    at ``v_lead`` that brakes at ``b_lead`` (≥ 0) until it stands. The gap is least where the speeds meet while
-    both move, or at the end, both standing; found by bisection (it shrinks as the deceleration grows)."""
+    at ``v_lead`` that brakes at ``b_lead`` (≥ 0) until it stands: 0 where below MIN_DECEL, at most MAX_DECEL.
+
+    Braking at a, the gap is least where both stand or where the speeds meet while both move. Both standing
+    needs a ≥ a_rest = v²/(2·(gap + S_lead)), S_lead the leader's stopping distance (inf: it goes on). The
+    speeds meet while both move iff the car is faster and would stop first, a·v_lead > b_lead·v; the gap then
+    shrinks by (v − v_lead)²/(2·(a − b_lead)), which needs a ≥ a_meet = b_lead + (v − v_lead)²/(2·gap). So
+    a_rest is the answer where braking at it the car stops no sooner than the leader, else max(a_rest, a_meet)
+    (at a = b_lead·v/v_lead both gaps agree, so the answer is where the gap first stays ≥ 0)."""
     gap, v_lead, b_lead = (np.asarray(x, dtype=float) for x in (gap, v_lead, b_lead))
-    braking = b_lead > 0.0
-    lead_time = np.where(braking, v_lead / np.maximum(b_lead, 1e-9), np.inf)  # [s] until the leader stands
-    lead_stop = np.where(v_lead <= 0.0, 0.0,
-                         np.where(braking, v_lead * v_lead / (2.0 * np.maximum(b_lead, 1e-9)), np.inf))  # [m]
-
-    def least_gap(a: np.ndarray) -> np.ndarray:
-        own_stop = v * v / (2.0 * a)
-        at_rest = gap + lead_stop - own_stop  # both stand (inf: the leader goes on)
-        # Speeds meet at t = (v - v_lead) / (a - b_lead) if that comes before either stands.
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (v - v_lead) / (a - b_lead)
-            before = (t > 0.0) & (t < v / a) & (t < lead_time)
-            closing = (v - v_lead) * t - 0.5 * (a - b_lead) * t * t
-        return np.minimum(at_rest, np.where(before, gap - closing, np.inf))
-
-    low, high = np.full(gap.shape, 1e-3), np.full(gap.shape, 1e3)
-    for _ in range(40):
-        mid = 0.5 * (low + high)
-        ok = least_gap(mid) >= 0.0
-        high, low = np.where(ok, mid, high), np.where(ok, low, mid)
-    return np.where(least_gap(np.full(gap.shape, 1e-3)) >= 0.0, 0.0, high)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lead_stop = np.where(v_lead <= 0.0, 0.0, np.where(b_lead > 0.0, v_lead * v_lead / (2.0 * b_lead), np.inf))
+        a_rest = v * v / (2.0 * (gap + lead_stop)) if v > 0.0 else np.zeros(gap.shape)
+        a_meet = b_lead + (v - v_lead) ** 2 / (2.0 * gap)
+        meets_first = (v > v_lead) & (np.maximum(a_rest, MIN_DECEL) * v_lead > b_lead * v)
+    least = np.where(meets_first, np.maximum(a_rest, a_meet), a_rest)
+    return np.where(least <= MIN_DECEL, 0.0, np.minimum(least, MAX_DECEL))
 
 
 class ProperResponseGuard:
