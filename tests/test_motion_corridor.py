@@ -49,6 +49,30 @@ def test_road_edges_keep_the_ego_body_on_the_three_lanes(road):
     assert np.array_equal(free, free[::-1])  # symmetric road
 
 
+def test_an_ego_over_the_road_edge_plans_from_where_it_is_and_no_further_out(road):
+    """An ego whose body is 0.45 m over the right edge (centre at d = −4.8 m; the road ends at −5.25 m): without
+    its d its own cell is off-road and every corridor fails at the start; with it the right edge moves out to the
+    ego's cell and no further, the left edge stays, and a corridor back to the lane centre is found."""
+    empty = _agents(np.full(26, -1e3), np.zeros(26))
+    ego_d = -4.8
+    fixed = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, empty, np.inf, SETTINGS)
+    moved = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, empty, np.inf, SETTINGS, ego_d=ego_d)
+    _, d = _cells(moved)
+    ego_cell = np.isclose(d, ego_d)
+    before, after = ~fixed.occupied[0, 20], ~moved.occupied[0, 20]
+    assert not before[ego_cell].any() and after[ego_cell].all()
+    assert np.array_equal(after, before | ((d >= ego_d - 1e-9) & (d < 0.0)))  # freed up to the ego's cell only
+    assert np.array_equal(moved.occupied[:, :, d > 0.0], fixed.occupied[:, :, d > 0.0])
+    seeds_d = np.minimum(ego_d + 0.5 * TIMES, -3.5)  # back to the right lane's centre
+    with pytest.raises(MotionFailure):
+        build_corridor(fixed, EGO_S + 20.0 * TIMES, seeds_d, 20.0)
+    corridor = build_corridor(moved, EGO_S + 20.0 * TIMES, seeds_d, 20.0)
+    assert corridor.knots[-1] == pytest.approx(TIMES[-1])
+    # An ego on the road changes nothing.
+    on_road = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, empty, np.inf, SETTINGS, ego_d=-3.5)
+    assert np.array_equal(on_road.occupied, fixed.occupied)
+
+
 def test_agents_are_inflated_by_the_ego_footprint_and_rasterised_conservatively(road):
     s_agent = EGO_S + 30.0 + 2.0 * TIMES  # [m] 30 m ahead, 2 m/s faster
     empty = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, _agents(np.full(26, -1e3), np.zeros(26)), np.inf, SETTINGS)

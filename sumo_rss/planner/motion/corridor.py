@@ -105,17 +105,22 @@ class RoadLayer:
 
 def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: float, ego_width: float,
               agents: tuple[np.ndarray, ...], stop_s: float, settings: CorridorSettings,
-              ego_heading: np.ndarray | None = None) -> Grid:
-    """The grid around the ego (its centre at frame s ``ego_s``): ``agents`` = (s, d, heading) arrays [K, n] at
-    ``times`` plus (length, width) [n]; the ego's centre may not pass ``stop_s``. ``ego_heading`` [K] [rad]
-    (relative to the frame; default 0): the ego's planned heading at each sample. Agents are kept clear of the
-    bounding box of its body turned by the largest heading of that sample and its neighbours (a car turned by
-    0.44 rad while merging reaches 1.87 m sideways, not 0.95 m); the road edges take its body unturned."""
+              ego_heading: np.ndarray | None = None, ego_d: float | None = None) -> Grid:
+    """The grid around the ego (its centre at frame s ``ego_s``, d ``ego_d``): ``agents`` = (s, d, heading) arrays
+    [K, n] at ``times`` plus (length, width) [n]; the ego's centre may not pass ``stop_s``. ``ego_heading`` [K]
+    [rad] (relative to the frame; default 0): the ego's planned heading at each sample. Agents are kept clear of
+    the bounding box of its body turned by the largest heading of that sample and its neighbours (a car turned by
+    0.44 rad while merging reaches 1.87 m sideways, not 0.95 m); the road edges take its body unturned, and where
+    it is over an edge now they hold it no further in than it is (:func:`_edge_moved_to`)."""
     c = settings
     first = int(np.floor((ego_s - c.s_back) / c.s_res))
     origin = first * c.s_res
     s_centres = origin + c.s_res * np.arange(c.s_cells)
-    static = road.window(first, c.s_cells) | (s_centres + 0.5 * c.s_res > stop_s)[:, None]
+    off_road = road.window(first, c.s_cells)
+    if ego_d is not None:
+        off_road = _edge_moved_to(off_road, int(np.rint((ego_s - origin) / c.s_res)),
+                                  int(np.rint((ego_d - c.d_min) / c.d_res)))
+    static = off_road | (s_centres + 0.5 * c.s_res > stop_s)[:, None]
     s, d, heading, length, width = agents
     if not s.size:
         return Grid(np.broadcast_to(static, (times.size,) + static.shape).copy(), times, origin, c)
@@ -134,6 +139,26 @@ def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: floa
     in_d = ((j >= d_lo[..., None]) & (j <= d_hi[..., None])).astype(np.float32)  # [K, n, D]
     dynamic = np.matmul(in_s.transpose(0, 2, 1), in_d) > 0.0
     return Grid(dynamic | static[None], times, origin, c)
+
+
+def _edge_moved_to(off_road: np.ndarray, row: int, col: int) -> np.ndarray:
+    """``off_road`` [S, D] with the road's edges on one side moved out by as many d cells as the ego's centre cell
+    ``(row, col)`` lies beyond the nearest free cell of its row, when it does (else unchanged): an ego whose body
+    is over an edge now (a lane change finished where the lane it left had ended, the body half-way into the
+    junction beyond it) may plan from where it is and back onto the road, never further out. Without this its own
+    cell is blocked, every corridor fails at the start and the backup holds it standing there for good."""
+    S, D = off_road.shape
+    if not (0 <= row < S and 0 <= col < D) or not off_road[row, col]:
+        return off_road
+    free = np.flatnonzero(~off_road[row])
+    if not free.size:
+        return off_road
+    shift = int(free[np.argmin(np.abs(free - col))]) - col  # > 0: the road is at higher d than the ego
+    # A cell becomes free where a free cell lies within |shift| cells of it on the road's side.
+    counts = np.concatenate([np.zeros((S, 1), dtype=int), np.cumsum(~off_road, axis=1)], axis=1)  # [S, D+1]
+    j = np.arange(D)
+    low, high = (j, np.minimum(j + shift, D - 1)) if shift > 0 else (np.maximum(j + shift, 0), j)
+    return counts[:, high + 1] - counts[:, low] == 0
 
 
 def _around(extent: np.ndarray) -> np.ndarray:

@@ -99,7 +99,7 @@ class MotionLayer:
         s, d, heading, speed, accel = inp.ego
         start = self._initial_state(inp)
         grid = occupancy(self._road(inp), inp.t, float(s[0]), inp.ego_length, inp.ego_width, inp.agents,
-                         inp.stop_s, cfg.corridor, heading)
+                         inp.stop_s, cfg.corridor, heading, float(d[0]))
         corridor = build_corridor(grid, s, d, float(speed[0]))
         k_end = int(corridor.cells[-1, 5])
         t_out = np.arange(0.0, float(inp.t[k_end]) + 0.5 * self.output_step, self.output_step)
