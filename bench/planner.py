@@ -1,7 +1,7 @@
 """EPSILON planner: planning-cycle time with 10 / 20 / 40 key agents (the full cycle and its motion-layer part),
 the closed-loop real-time factor of highway_dense with the EPSILON ego and the every-pair audit, and ego speed /
-responsibility / RMS jerk of the epsilon (with and without the SSC motion layer), sumo and mpdm controllers on the
-same seeds.
+responsibility / RMS jerk of the epsilon (with and without the SSC motion layer, and planning every second step),
+sumo and mpdm controllers on the same seeds.
 
 Targets: issue 5: behaviour cycle median <= 30 ms and p99 <= 80 ms with 20 agents on one core; closed loop >= 5x
 real time; ego mean speed >= the sumo baseline's on the same seeds while never responsible. Issue 6: full cycle
@@ -44,6 +44,11 @@ CLOSED_LOOP_S = 150.0  # simulated seconds per comparison run (the ego departs a
 SETTLED_S = 20.0  # [s] after the ego's insertion (its first trace row; SUMO may insert it after depart_s)
 LANES_Y = (-8.75, -5.25, -1.75)  # hw0 lane centres
 SLOT_M = 14.5  # [m] between the slots of one lane in the synthetic snapshots (4.5 m cars, 1 m jitter each)
+# The compared egos: name -> (scenario controller, [ego.planner] settings). epsilon_replan2 plans every second
+# step (5 Hz, the executed trajectory and the RSS guard still every step): measured for the owner's choice on the
+# 5x target, which is judged on the default (every step, epsilon.md port decision 6).
+VARIANTS = {"epsilon": ("epsilon", {}), "epsilon_behaviour": ("epsilon", {"motion_layer": False}),
+            "epsilon_replan2": ("epsilon", {"replan_every": 2}), "sumo": ("sumo", {}), "mpdm": ("mpdm", {})}
 EGO_CLEAR_M = 30.0  # [m] no synthetic car this near the ego in its lane (centre to centre): a 1 s gap at 25 m/s
 
 
@@ -108,12 +113,13 @@ def _cycle_pass(network: RoadNetwork, agents: int) -> dict:
             "ssc_p99_ms": float(np.percentile(ssc, 99)), "motion_outcomes": outcomes}
 
 
-def closed_loop(controller: str, seed: int) -> dict:
-    """``controller``: a scenario controller, or 'epsilon_behaviour' (EPSILON without the motion layer)."""
+def closed_loop(variant: str, seed: int) -> dict:
+    """``variant``: a key of VARIANTS."""
     spec = load_scenario(REPO / "scenarios" / "highway_dense.toml").with_overrides(seed=seed,
                                                                                   duration_s=CLOSED_LOOP_S)
-    planner = replace(spec.ego.planner, motion_layer=controller != "epsilon_behaviour")
-    spec = replace(spec, ego=replace(spec.ego, controller=controller.split("_")[0], planner=planner))
+    controller, planner_settings = VARIANTS[variant]
+    planner = replace(spec.ego.planner, **planner_settings)
+    spec = replace(spec, ego=replace(spec.ego, controller=controller, planner=planner))
     out = Path(tempfile.mkdtemp(prefix="sumo_rss_bench_"))
     departed: list[float] = []  # wall clock when the simulation reached the ego's departure time
 
@@ -149,8 +155,7 @@ def main() -> None:
     options = arguments(__doc__, "planner.py")
     network = RoadNetwork.from_file(REPO / "networks" / "highway" / "highway.net.xml")
     figures: dict = {"cycle": {str(n): cycle_times(network, n) for n in (10, 20, 40)}}
-    comparison = {c: {str(seed): closed_loop(c, seed) for seed in SEEDS}
-                  for c in ("epsilon", "epsilon_behaviour", "sumo", "mpdm")}
+    comparison = {c: {str(seed): closed_loop(c, seed) for seed in SEEDS} for c in VARIANTS}
     figures["closed_loop_highway_dense"] = comparison
     speed, settled = ({c: float(np.mean([r[key] for r in runs.values()])) for c, runs in comparison.items()}
                       for key in ("ego_mean_speed_ms", "ego_mean_speed_settled_ms"))
