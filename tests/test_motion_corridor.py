@@ -68,9 +68,11 @@ def test_an_ego_over_the_road_edge_plans_from_where_it_is_and_no_further_out(roa
         build_corridor(fixed, EGO_S + 20.0 * TIMES, seeds_d, 20.0)
     corridor = build_corridor(moved, EGO_S + 20.0 * TIMES, seeds_d, 20.0)
     assert corridor.knots[-1] == pytest.approx(TIMES[-1])
-    # An ego on the road changes nothing.
-    on_road = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, empty, np.inf, SETTINGS, ego_d=-3.5)
-    assert np.array_equal(on_road.occupied, fixed.occupied)
+    # An ego on the road changes nothing, and neither does one whose centre is off it too (more than half its
+    # width beyond the nearest free cell: not an overhang to plan back from).
+    for d_elsewhere in (-3.5, -6.0):
+        elsewhere = occupancy(road, TIMES, EGO_S, LENGTH, WIDTH, empty, np.inf, SETTINGS, ego_d=d_elsewhere)
+        assert np.array_equal(elsewhere.occupied, fixed.occupied)
 
 
 def test_agents_are_inflated_by_the_ego_footprint_and_rasterised_conservatively(road):

@@ -119,7 +119,7 @@ def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: floa
     off_road = road.window(first, c.s_cells)
     if ego_d is not None:
         off_road = _edge_moved_to(off_road, int(np.rint((ego_s - origin) / c.s_res)),
-                                  int(np.rint((ego_d - c.d_min) / c.d_res)))
+                                  int(np.rint((ego_d - c.d_min) / c.d_res)), int(np.ceil(0.5 * ego_width / c.d_res)))
     static = off_road | (s_centres + 0.5 * c.s_res > stop_s)[:, None]
     s, d, heading, length, width = agents
     if not s.size:
@@ -141,12 +141,15 @@ def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: floa
     return Grid(dynamic | static[None], times, origin, c)
 
 
-def _edge_moved_to(off_road: np.ndarray, row: int, col: int) -> np.ndarray:
+def _edge_moved_to(off_road: np.ndarray, row: int, col: int, max_shift: int) -> np.ndarray:
     """``off_road`` [S, D] with the road's edges on one side moved out by as many d cells as the ego's centre cell
-    ``(row, col)`` lies beyond the nearest free cell of its row, when it does (else unchanged): an ego whose body
-    is over an edge now (a lane change finished where the lane it left had ended, the body half-way into the
-    junction beyond it) may plan from where it is and back onto the road, never further out. Without this its own
-    cell is blocked, every corridor fails at the start and the backup holds it standing there for good."""
+    ``(row, col)`` lies beyond the nearest free cell of its row, when it does by at most ``max_shift`` cells (else
+    unchanged): an ego whose body is over an edge now (a lane change finished where the lane it left had ended,
+    the body half-way into the junction beyond it) may plan from where it is and back onto the road, never further
+    out. Without this its own cell is blocked, every corridor fails at the start and the backup holds it standing
+    there for good. Farther than ``max_shift`` (half the ego's width: its centre is off the road too, or its cell
+    is off-road because its lane ends just ahead and the nearest road is another lane) the edges stay: moving them
+    would open a strip along the whole window, past the lane's end."""
     S, D = off_road.shape
     if not (0 <= row < S and 0 <= col < D) or not off_road[row, col]:
         return off_road
@@ -154,6 +157,8 @@ def _edge_moved_to(off_road: np.ndarray, row: int, col: int) -> np.ndarray:
     if not free.size:
         return off_road
     shift = int(free[np.argmin(np.abs(free - col))]) - col  # > 0: the road is at higher d than the ego
+    if abs(shift) > max_shift:
+        return off_road
     # A cell becomes free where a free cell lies within |shift| cells of it on the road's side.
     counts = np.concatenate([np.zeros((S, 1), dtype=int), np.cumsum(~off_road, axis=1)], axis=1)  # [S, D+1]
     j = np.arange(D)
