@@ -160,10 +160,16 @@ def _edge_moved_to(off_road: np.ndarray, row: int, col: int, max_shift: int) -> 
     if abs(shift) > max_shift:
         return off_road
     # A cell becomes free where a free cell lies within |shift| cells of it on the road's side.
-    counts = np.concatenate([np.zeros((S, 1), dtype=int), np.cumsum(~off_road, axis=1)], axis=1)  # [S, D+1]
     j = np.arange(D)
     low, high = (j, np.minimum(j + shift, D - 1)) if shift > 0 else (np.maximum(j + shift, 0), j)
-    return counts[:, high + 1] - counts[:, low] == 0
+    return _count_in_windows(~off_road, low, high) == 0
+
+
+def _count_in_windows(mask: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """[rows, W]: per row of ``mask`` [rows, D], how many of its columns ``low[w]`` .. ``high[w]`` (inclusive) are
+    True."""
+    counts = np.concatenate([np.zeros((mask.shape[0], 1), dtype=int), np.cumsum(mask, axis=1)], axis=1)
+    return counts[:, high + 1] - counts[:, low]
 
 
 def _around(extent: np.ndarray) -> np.ndarray:
@@ -196,11 +202,10 @@ def _body_off_road(frame: RoadFrame, s_edges: np.ndarray, ego_width: float, c: C
     covered = on_road[:, :-1] & on_road[:, 1:]  # [E, D] the whole d cell is road
     # The body of a centre anywhere in cell j spans the cells touching [d_j − res/2 − w/2, d_j + res/2 + w/2].
     reach = int(np.ceil(0.5 * ego_width / c.d_res - 1e-9))
-    gaps = np.concatenate([np.zeros((s_edges.size, 1), dtype=int), np.cumsum(~covered, axis=1)], axis=1)
     j = np.arange(c.d_cells)
     first, last = np.maximum(j - reach, 0), np.minimum(j + reach, c.d_cells - 1)
     inside_grid = (j - reach >= 0) & (j + reach <= c.d_cells - 1)
-    return ~((gaps[:, last + 1] - gaps[:, first] == 0) & inside_grid)
+    return ~((_count_in_windows(~covered, first, last) == 0) & inside_grid)
 
 
 def build_corridor(grid: Grid, seeds_s: np.ndarray, seeds_d: np.ndarray, v0: float) -> Corridor:
