@@ -73,10 +73,20 @@ class Grid:
     settings: CorridorSettings
 
     def s_index(self, s: np.ndarray) -> np.ndarray:
-        return np.rint((np.asarray(s) - self.s_origin) / self.settings.s_res).astype(int)
+        return _cell_index(s, self.s_origin, self.settings.s_res)
 
     def d_index(self, d: np.ndarray) -> np.ndarray:
-        return np.rint((np.asarray(d) - self.settings.d_min) / self.settings.d_res).astype(int)
+        return _cell_index(d, self.settings.d_min, self.settings.d_res)
+
+
+def _cell_index(value: np.ndarray | float, origin: float, res: float) -> np.ndarray:
+    """The cell whose centre (``origin + index·res``) is nearest to ``value`` [m]."""
+    return np.rint((np.asarray(value) - origin) / res).astype(int)
+
+
+def _half_extent_cells(extent: float, res: float) -> int:
+    """How many cells of ``res`` [m] half of ``extent`` [m] spans (a whole number of cells is not rounded up)."""
+    return int(np.ceil(0.5 * extent / res - 1e-9))
 
 
 class RoadLayer:
@@ -90,7 +100,7 @@ class RoadLayer:
         self.first = int(np.floor(frame.s0 / c.s_res)) - c.s_cells
         last = int(np.ceil((frame.s0 + GRID_STEP * (frame.centre.shape[1] - 1)) / c.s_res)) + c.s_cells
         # Edge e is the lower edge of cell first + e; a body centred in cell i spans the edges i − r .. i + 1 + r.
-        r = int(np.ceil(0.5 * ego_length / c.s_res - 1e-9))
+        r = _half_extent_cells(ego_length, c.s_res)
         edges = c.s_res * (np.arange(self.first - r, last + r + 2) - 0.5)
         off = np.concatenate([np.zeros((1, c.d_cells), dtype=int),
                               np.cumsum(_body_off_road(frame, edges, ego_width, c), axis=0)])
@@ -118,8 +128,8 @@ def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: floa
     s_centres = origin + c.s_res * np.arange(c.s_cells)
     off_road = road.window(first, c.s_cells)
     if ego_d is not None:
-        off_road = _edge_moved_to(off_road, int(np.rint((ego_s - origin) / c.s_res)),
-                                  int(np.rint((ego_d - c.d_min) / c.d_res)), int(np.ceil(0.5 * ego_width / c.d_res)))
+        off_road = _edge_moved_to(off_road, int(_cell_index(ego_s, origin, c.s_res)),
+                                  int(_cell_index(ego_d, c.d_min, c.d_res)), _half_extent_cells(ego_width, c.d_res))
     static = off_road | (s_centres + 0.5 * c.s_res > stop_s)[:, None]
     s, d, heading, length, width = agents
     if not s.size:
@@ -201,7 +211,7 @@ def _body_off_road(frame: RoadFrame, s_edges: np.ndarray, ego_width: float, c: C
                      (edges <= (centres + half + tol)[..., None]), axis=0)  # [E, D+1]
     covered = on_road[:, :-1] & on_road[:, 1:]  # [E, D] the whole d cell is road
     # The body of a centre anywhere in cell j spans the cells touching [d_j − res/2 − w/2, d_j + res/2 + w/2].
-    reach = int(np.ceil(0.5 * ego_width / c.d_res - 1e-9))
+    reach = _half_extent_cells(ego_width, c.d_res)
     j = np.arange(c.d_cells)
     first, last = np.maximum(j - reach, 0), np.minimum(j + reach, c.d_cells - 1)
     inside_grid = (j - reach >= 0) & (j + reach <= c.d_cells - 1)
