@@ -146,7 +146,8 @@ class RayExecutor:
         except ImportError:
             raise SumoRssError("--ray-address needs Ray: pip install 'sumo-rss[ray]'") from None
         self.address = address
-        if not ray.is_initialized():
+        self.connected_here = not ray.is_initialized()  # this executor connected (and disconnects on a stop)
+        if self.connected_here:
             _check_listening(address)
             try:
                 ray.init(address=None if address == "local" else address, log_to_driver=False)
@@ -171,8 +172,15 @@ class RayExecutor:
                 except ray.exceptions.RayError as exc:  # the worker died: SUMO crashed, node lost, ...
                     on_result(record_failure(out_dir, task, f"{type(exc).__name__}: {exc}", ""))
         except BaseException:
-            for future in futures:
-                ray.cancel(future, force=True)
+            # Stop the runs still going. Cancelling a task whose result is arriving can crash the driver's Ray core
+            # worker (ray 2.60: "Tried to complete task that was not pending", exit code 1 instead of the batch's
+            # 130). Where this executor connected, disconnecting stops them instead: a local instance ends with its
+            # processes, and a cluster's raylets end a finished job's workers.
+            if self.connected_here:
+                ray.shutdown()
+            else:
+                for future in futures:
+                    ray.cancel(future, force=True)
             raise
 
 
