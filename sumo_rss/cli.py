@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, audit, report, nets, train-intent.
+"""The ``sumo-rss`` command line: run, batch, audit, report, view, nets, train-intent.
 
 Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
 ``--debug`` shows the traceback instead.
@@ -36,6 +36,7 @@ _BATCH_EXAMPLES = """examples:
 """
 _REPORT_EXAMPLES = """examples:
   sumo-rss report results/default          # -> results/default/report.html and results/default/report/*.png
+  sumo-rss report results/default --no-views   # without each run's view.html (and the links to them)
 """
 _AUDIT_EXAMPLES = """examples:
   sumo-rss audit results/merge_onramp/3/fcd.xml --net networks/merge/merge.net.xml \\
@@ -44,6 +45,12 @@ _AUDIT_EXAMPLES = """examples:
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
   sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
   (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
+"""
+_VIEW_EXAMPLES = """examples:
+  sumo-rss view results/merge_onramp/3          # -> results/merge_onramp/3/view.html (open it in a browser)
+  sumo-rss view results/default/highway_dense/0 --out dense.html
+  sumo-rss audit my.fcd.xml --net my.net.xml --out audit/ && sumo-rss view audit/
+  sumo-rss view audit/ --net elsewhere/my.net.xml --every 10   # the net moved; a long audit: every 10th step
 """
 _NETS_EXAMPLES = """examples:
   sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
@@ -153,9 +160,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     report = sub.add_parser("report", parents=[common], help="tables, PNG plots and report.html of a batch",
                             description="Summarise a batch folder: per-scenario responsibility, violation types, "
-                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML.",
+                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML "
+                                        "whose tables link each run's replay (view.html, written beside the run "
+                                        "where it is missing or older than the run).",
                             epilog=_REPORT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     report.add_argument("batch_dir", type=Path, help="a batch folder (with batch_summary.csv)")
+    report.add_argument("--no-views", dest="views", action="store_false",
+                        help="do not write each run's replay page (view.html, as 'sumo-rss view' writes it) nor "
+                             "link the tables' rows to them")
+    report.add_argument("--quiet", action="store_true", help="no progress bar")
 
     audit = sub.add_parser("audit", parents=[common], help="audit a SUMO FCD file offline",
                            description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
@@ -194,6 +207,24 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
     audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
     audit.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    view = sub.add_parser("view", parents=[common], help="an interactive replay of a run or audit (view.html)",
+                          description="Write one self-contained HTML page (no server, no network needed) that "
+                                      "replays a run or an offline audit top-down: the network's lanes and "
+                                      "junctions, every recorded vehicle, the danger episodes' pairs joined by a "
+                                      "line coloured by who is responsible, the selected pair's gaps against "
+                                      "d_min and its owed responses with their bounds, violations and "
+                                      "collisions on the timeline, and a sortable list of episodes. A run "
+                                      "records the vehicles within 150 m of its ego (all with --fcd or without "
+                                      "an ego); an audit records every vehicle of its FCD.",
+                          epilog=_VIEW_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    view.add_argument("run_dir", type=Path, metavar="RUN_DIR",
+                      help="a run folder of 'sumo-rss run' or 'batch', or the --out folder of 'sumo-rss audit'")
+    view.add_argument("--out", type=Path, help="the page to write (default: RUN_DIR/view.html)")
+    view.add_argument("--net", type=Path,
+                      help="the network (.net.xml), where it is no longer where the run or audit read it")
+    view.add_argument("--every", type=_positive_int, default=1, metavar="N",
+                      help="keep every N-th recorded step (default 1: all; for long runs, a smaller page)")
 
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
                           description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
@@ -336,7 +367,7 @@ def _interrupt(signum: int, frame: object) -> None:
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report.html import write_report
 
-    html = write_report(args.batch_dir)
+    html = write_report(args.batch_dir, views=args.views, progress=not args.quiet)
     print(f"report: {html}")
     return 0
 
@@ -351,6 +382,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
+    from .view.trajectories import TRAJECTORY_FILE, TrajectoryRecorder
 
     if not args.fcd.is_file():
         raise FcdError(f"{args.fcd}: FCD file not found")
@@ -389,15 +421,25 @@ def _cmd_audit(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
         stop = _StopRequest.on_signals("the audit")
+        recorder = TrajectoryRecorder(args.net)  # every vehicle: what 'sumo-rss view' replays, without the FCD
         result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                            collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop)
+                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop,
+                           record_states=True, on_snapshot=recorder.add)
         if not stop.requested:
             on_progress(bar.total)  # read to its end
     result.to_csv(args.out)
+    recorder.write(args.out / TRAJECTORY_FILE)
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
           f"violations, {len(result.collisions)} collisions -> {args.out}")
     return EXIT_INTERRUPTED if stop.requested else 0
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from .view import write_view
+
+    print(f"view: {write_view(args.run_dir, args.out, args.net, args.every)}")
+    return 0
 
 
 def _cmd_nets(args: argparse.Namespace) -> int:
@@ -460,7 +502,7 @@ def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
-               "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
+               "view": _cmd_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
         with warnings.catch_warnings():
             if not args.debug:
