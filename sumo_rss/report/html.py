@@ -80,7 +80,8 @@ def _view_links(batch_dir: Path, summary: pd.DataFrame, progress: bool) -> dict[
 def _with_views(table: pd.DataFrame, labels: pd.Series, summary: pd.DataFrame, links: dict[str, str]
                 ) -> pd.DataFrame:
     """``table`` (rows: run labels) with a column 'views': a link to each of the row's runs' pages, by seed."""
-    runs = summary[summary.run_id.astype(str).isin(links)].assign(label=labels)
+    runs = summary.assign(label=labels)
+    runs = runs[runs.run_id.astype(str).isin(links)]
     cells = {label: " ".join(f"<a href='{html.escape(links[str(r.run_id)])}'>{html.escape(str(r.seed))}</a>"
                              for r in group.sort_values("seed").itertuples()) for label, group in runs.groupby("label")}
     return _escaped(table).assign(views=[cells.get(label, "") for label in table.index])

@@ -1,8 +1,8 @@
 """What a view page holds: a run's or audit's folder read into one JSON header and one binary blob.
 
 The blob (typed arrays, 8-byte aligned, then gzip) carries what is drawn per step: positions quantised to 1 cm
-(int32, relative to ``origin``), headings to 2π/65534 rad (int16), speeds to 1 cm/s (uint16), and the network's
-shapes and the episodes' step-by-step states as float32. The header (JSON) carries the tables: episodes,
+(int32, relative to ``origin``), headings to 2π/65534 rad (int16), speeds to 1 cm/s (uint16), the network's shapes
+as float32 and the episodes' step-by-step states quantised to 0.001 (m, m/s, m/s²; int32). The header (JSON) carries the tables: episodes,
 violations, collisions, signal changes, vehicle ids.
 """
 from __future__ import annotations
@@ -22,6 +22,8 @@ from .network import LANE_KINDS, NetGeometry
 from .trajectories import Trajectories
 
 HEADING_SCALE = 32767.0 / math.pi  # int16 units per rad
+QUANTISED_NAN = np.iinfo(np.int32).min  # a missing value (e.g. a bound that does not apply) in a quantised array
+STATE_UNIT = 0.001  # [m, m/s, m/s²] of the episodes' step-by-step states
 _JS_TYPES = {np.dtype(np.float64): "f8", np.dtype(np.float32): "f4", np.dtype(np.int32): "i4",
              np.dtype(np.uint32): "u4", np.dtype(np.int16): "i2", np.dtype(np.uint16): "u2", np.dtype(np.uint8): "u1"}
 _EPISODE_COLUMNS = ("episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "situation", "conflict_area",
@@ -45,8 +47,19 @@ class Blob:
 
     def add(self, name: str, array: np.ndarray) -> None:
         array = np.ascontiguousarray(array)
+        self._append(name, array, [_JS_TYPES[array.dtype]])
+
+    def add_quantised(self, name: str, values: np.ndarray, unit: float) -> None:
+        """``values`` as int32 multiples of ``unit`` (NaN: QUANTISED_NAN); the page reads them back as float32."""
+        values = np.asarray(values, dtype=np.float64)
+        scaled = np.round(np.where(np.isnan(values), 0.0, values) / unit)
+        if np.abs(scaled).max(initial=0.0) >= QUANTISED_NAN * -1:
+            raise ValueError(f"{name}: values beyond {-QUANTISED_NAN * unit:g} do not fit")
+        self._append(name, np.where(np.isnan(values), QUANTISED_NAN, scaled).astype(np.int32), ["q4", unit])
+
+    def _append(self, name: str, array: np.ndarray, kind: list) -> None:
         data = array.astype(array.dtype.newbyteorder("<"), copy=False).tobytes()
-        self.index[name] = [_JS_TYPES[array.dtype], self.size, int(array.size)]
+        self.index[name] = [kind[0], self.size, int(array.size), *kind[1:]]
         padding = -len(data) % 8
         self.parts.append(data + b"\0" * padding)
         self.size += len(data) + padding
@@ -179,7 +192,8 @@ def _add_states(blob: Blob, path: Path, episode_keys: list[str]) -> dict:
     spans = [rows_of.get(key, (0, 0)) for key in episode_keys]
     count = np.array([e - s for s, e in spans], dtype=np.int64)
     take = np.concatenate([np.arange(s, e) for s, e in spans] + [np.zeros(0, dtype=np.int64)])
-    for name in ("time", *_STATE_ARRAYS):
-        values = getattr(states, name)[take] if states is not None else np.zeros(0)
-        blob.add(f"state_{name}", values.astype(np.float64 if name == "time" else np.float32))
+    blob.add("state_time", states.time[take] if states is not None else np.zeros(0))
+    for name in _STATE_ARRAYS:
+        blob.add_quantised(f"state_{name}", getattr(states, name)[take] if states is not None else np.zeros(0),
+                           STATE_UNIT)
     return {"state_start": (np.cumsum(count) - count).tolist(), "state_count": count.tolist()}

@@ -28,7 +28,12 @@ function arrays(buffer, index) {
   const types = { f8: Float64Array, f4: Float32Array, i4: Int32Array, u4: Uint32Array, i2: Int16Array,
     u2: Uint16Array, u1: Uint8Array };
   const out = {};
-  for (const [name, [type, offset, length]] of Object.entries(index)) out[name] = new types[type](buffer, offset, length);
+  for (const [name, [type, offset, length, unit]] of Object.entries(index)) {
+    if (type !== "q4") { out[name] = new types[type](buffer, offset, length); continue; }
+    const q = new Int32Array(buffer, offset, length), values = new Float32Array(length);  // quantised: × unit
+    for (let i = 0; i < length; i++) values[i] = q[i] === -2147483648 ? NaN : q[i] * unit;
+    out[name] = values;
+  }
   return out;
 }
 
