@@ -14,6 +14,7 @@ from typing import Any
 CHROMIUM_FLAGS = ("--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
                   "--disable-component-update", "--disable-sync")
 READY = "document.body.dataset.ready === 'true'"  # the viewer has drawn its first frame
+STATES_READY = "document.body.dataset.states === 'ready'"  # ... and read the episodes' states (its charts' data)
 
 
 def chromium_path() -> str | None:
@@ -51,13 +52,14 @@ def headless_chromium() -> Iterator[Any]:
             browser.close()
 
 
-def open_view(browser: Any, page_file: Path, width: int = 1400, height: int = 850, timeout_s: float = 60.0) -> Any:
-    """A new page showing ``page_file`` (a view.html), once the viewer is ready; its console errors and uncaught
-    exceptions are collected in ``page.errors``."""
+def open_view(browser: Any, page_file: Path, width: int = 1400, height: int = 850, timeout_s: float = 60.0,
+              wait_for: str = STATES_READY) -> Any:
+    """A new page showing ``page_file`` (a view.html), once ``wait_for`` holds (by default: everything is read);
+    its console errors and uncaught exceptions are collected in ``page.errors``."""
     page = browser.new_page(viewport={"width": width, "height": height})
     page.errors = []
     page.on("console", lambda message: page.errors.append(message.text) if message.type == "error" else None)
     page.on("pageerror", lambda error: page.errors.append(str(error)))
     page.goto(Path(page_file).resolve().as_uri())
-    page.wait_for_function(READY, timeout=timeout_s * 1000)
+    page.wait_for_function(wait_for, timeout=timeout_s * 1000)
     return page

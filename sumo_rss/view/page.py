@@ -41,9 +41,9 @@ def write_view(run_dir: Path, out: Path | None = None, net: Path | None = None, 
     if not net_file.is_file():
         named = "" if net is not None else f" (the network {source.name} names)"
         raise SumoRssError(f"{net_file}: network file not found{named}; give it with --net")
-    header, blob = build_payload(run_dir, trajectories, geometry(net_file), every)
+    header, scene, states = build_payload(run_dir, trajectories, geometry(net_file), every)
     out = Path(out) if out is not None else run_dir / VIEW_FILE
-    write_text(out, render_page(header, blob.compressed()))
+    write_text(out, render_page(header, scene.compressed(), states.compressed()))
     return out
 
 
@@ -73,13 +73,14 @@ def write_run_views(run_dirs: Iterable[Path], on_done: Callable[[], None] | None
     return views
 
 
-def render_page(header: dict, data: bytes) -> str:
-    """The page: the template with the style, the viewer module, the header (JSON) and the data (base64) inside."""
+def render_page(header: dict, scene: bytes, states: bytes) -> str:
+    """The page: the template with the style, the viewer module, the header (JSON) and the blobs (base64) inside."""
     folder = resources.files(__package__)
     text = json.dumps(header, separators=(",", ":"), allow_nan=False)
     page = folder.joinpath("template.html").read_text(encoding="utf-8")
     parts = {"{{title}}": html.escape(str(header["title"])), "{{css}}": folder.joinpath("viewer.css").read_text(
-        encoding="utf-8"), "{{header}}": text.replace("</", "<\\/"), "{{blob}}": base64.b64encode(data).decode("ascii"),
+        encoding="utf-8"), "{{header}}": text.replace("</", "<\\/"), "{{scene}}": base64.b64encode(scene).decode("ascii"),
+             "{{states}}": base64.b64encode(states).decode("ascii"),
              "{{js}}": folder.joinpath("viewer.js").read_text(encoding="utf-8")}
     for marker, value in parts.items():
         page = page.replace(marker, value)

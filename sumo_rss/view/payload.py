@@ -1,15 +1,14 @@
-"""What a view page holds: a run's or audit's folder read into one JSON header and one binary blob.
+"""What a view page holds: a run's or audit's folder read into one JSON header and two binary blobs.
 
-The blob (typed arrays, 8-byte aligned, then gzip) carries what is drawn per step: positions quantised to 1 cm
-(int32, relative to ``origin``), headings to 2π/65534 rad (int16), speeds to 1 cm/s (uint16), the network's shapes
-as float32 and the episodes' step-by-step states quantised to 0.001 (m, m/s, m/s²; int32). The header (JSON) carries the tables: episodes,
-violations, collisions, signal changes, vehicle ids.
+The scene blob (:mod:`.blob`) carries what is drawn per step: positions quantised to 1 cm (int32, relative to ``origin``,
+as differences along each vehicle's rows), headings to 2π/65534 rad (int16, likewise), speeds to 1 cm/s (uint16),
+the network's shapes as float32; the state blob, which the page reads after its first frame, the episodes'
+step-by-step states quantised to 0.01 (m: int32; m/s, m/s²: int16, per car one column after the other). The header (JSON) carries the tables: episodes, violations, collisions,
+signal changes, vehicle ids.
 """
 from __future__ import annotations
 
-import gzip
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -18,55 +17,20 @@ import pandas as pd
 from ..errors import SumoRssError
 from ..files import read_json_object
 from ..rss.episode_states import STATE_FILE, EpisodeStates
+from .blob import Blob
 from .network import LANE_KINDS, NetGeometry
 from .trajectories import Trajectories
 
 HEADING_SCALE = 32767.0 / math.pi  # int16 units per rad
-QUANTISED_NAN = np.iinfo(np.int32).min  # a missing value (e.g. a bound that does not apply) in a quantised array
-STATE_UNIT = 0.001  # [m, m/s, m/s²] of the episodes' step-by-step states
-_JS_TYPES = {np.dtype(np.float64): "f8", np.dtype(np.float32): "f4", np.dtype(np.int32): "i4",
-             np.dtype(np.uint32): "u4", np.dtype(np.int16): "i2", np.dtype(np.uint16): "u2", np.dtype(np.uint8): "u1"}
+STATE_UNIT = 0.01  # [m, m/s, m/s²] of the episodes' step-by-step states
 _EPISODE_COLUMNS = ("episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "situation", "conflict_area",
                     "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b", "responsible",
                     "min_lon_margin_m", "min_lat_margin_m", "collision", "ended_by")
 _VIOLATION_COLUMNS = ("episode_key", "vehicle_id", "role", "constraint", "bound", "worst_actual", "t_start_s",
                       "t_end_s")
 _COLLISION_COLUMNS = ("time_s", "collider", "victim", "blamed")
-_STATE_ARRAYS = ("lon_gap", "lon_d_min", "lat_gap", "lat_d_min", "accel", "accel_max", "accel_min", "lat_speed",
-                 "lat_speed_max")
-
-
-@dataclass
-class Blob:
-    """Typed arrays packed one after the other (each at a multiple of 8 bytes); ``index`` names each one's
-    [type, byte offset, length] for the page."""
-
-    parts: list[bytes] = field(default_factory=list)
-    index: dict[str, list] = field(default_factory=dict)
-    size: int = 0
-
-    def add(self, name: str, array: np.ndarray) -> None:
-        array = np.ascontiguousarray(array)
-        self._append(name, array, [_JS_TYPES[array.dtype]])
-
-    def add_quantised(self, name: str, values: np.ndarray, unit: float) -> None:
-        """``values`` as int32 multiples of ``unit`` (NaN: QUANTISED_NAN); the page reads them back as float32."""
-        values = np.asarray(values, dtype=np.float64)
-        scaled = np.round(np.where(np.isnan(values), 0.0, values) / unit)
-        if np.abs(scaled).max(initial=0.0) >= QUANTISED_NAN * -1:
-            raise ValueError(f"{name}: values beyond {-QUANTISED_NAN * unit:g} do not fit")
-        self._append(name, np.where(np.isnan(values), QUANTISED_NAN, scaled).astype(np.int32), ["q4", unit])
-
-    def _append(self, name: str, array: np.ndarray, kind: list) -> None:
-        data = array.astype(array.dtype.newbyteorder("<"), copy=False).tobytes()
-        self.index[name] = [kind[0], self.size, int(array.size), *kind[1:]]
-        padding = -len(data) % 8
-        self.parts.append(data + b"\0" * padding)
-        self.size += len(data) + padding
-
-    def compressed(self) -> bytes:
-        """The gzip of the blob (no time stamp: the same run gives the same page)."""
-        return gzip.compress(b"".join(self.parts), compresslevel=6, mtime=0)
+_STATE_GAPS = ("lon_gap", "lon_d_min", "lat_gap", "lat_d_min")  # [m], int32
+_STATE_PER_CAR = ("accel", "accel_max", "accel_min", "lat_speed", "lat_speed_max")  # [m/s², m/s], int16
 
 
 def read_table(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
@@ -93,8 +57,8 @@ def _numbers(table: pd.DataFrame, column: str, path: Path) -> list[float | None]
 
 
 def build_payload(run_dir: Path, trajectories: Trajectories, net: NetGeometry, every: int = 1
-                  ) -> tuple[dict, Blob]:
-    """The page's header and blob for ``run_dir``, keeping every ``every``-th recorded step."""
+                  ) -> tuple[dict, Blob, Blob]:
+    """The page's header, scene blob and state blob for ``run_dir``, keeping every ``every``-th recorded step."""
     header: dict = {"title": _title(run_dir), "scope": trajectories.scope, "every": every,
                     "lane_kinds": list(LANE_KINDS)}
     blob = Blob()
@@ -114,9 +78,10 @@ def build_payload(run_dir: Path, trajectories: Trajectories, net: NetGeometry, e
                             "victim": [vehicle_index.get(v, -1) for v in collisions.victim],
                             "ids": [f"{c} / {v}" for c, v in zip(collisions.collider, collisions.victim)],
                             "blamed": collisions.blamed.tolist()}
-    header["episodes"].update(_add_states(blob, run_dir / STATE_FILE, episodes.episode_key.tolist()))
-    header["blob"] = blob.index
-    return header, blob
+    states = Blob()
+    header["episodes"].update(_add_states(states, run_dir / STATE_FILE, episodes.episode_key.tolist()))
+    header["scene_blob"], header["state_blob"] = blob.index, states.index
+    return header, blob, states
 
 
 def _title(run_dir: Path) -> str:
@@ -143,9 +108,10 @@ def _add_trajectories(header: dict, blob: Blob, t: Trajectories, origin: tuple[i
     blob.add("time", t.time[steps].astype(np.float64))
     blob.add("step_start", np.concatenate([[0], np.cumsum(end - start)]).astype(np.uint32))
     blob.add("vehicle", t.vehicle[rows].astype(np.uint32))
-    blob.add("x", np.round((t.x[rows].astype(np.float64) - origin[0]) * 100.0).astype(np.int32))
-    blob.add("y", np.round((t.y[rows].astype(np.float64) - origin[1]) * 100.0).astype(np.int32))
-    blob.add("heading", np.round(t.heading[rows].astype(np.float64) * HEADING_SCALE).astype(np.int16))
+    blob.add("x", np.round((t.x[rows].astype(np.float64) - origin[0]) * 100.0).astype(np.int32), delta_by="vehicle")
+    blob.add("y", np.round((t.y[rows].astype(np.float64) - origin[1]) * 100.0).astype(np.int32), delta_by="vehicle")
+    blob.add("heading", np.round(t.heading[rows].astype(np.float64) * HEADING_SCALE).astype(np.int16),
+             delta_by="vehicle")
     blob.add("speed", np.clip(np.round(t.speed[rows].astype(np.float64) * 100.0), 0, 65535).astype(np.uint16))
     blob.add("length", t.length.astype(np.float32))
     blob.add("width", t.width.astype(np.float32))
@@ -192,8 +158,11 @@ def _add_states(blob: Blob, path: Path, episode_keys: list[str]) -> dict:
     spans = [rows_of.get(key, (0, 0)) for key in episode_keys]
     count = np.array([e - s for s, e in spans], dtype=np.int64)
     take = np.concatenate([np.arange(s, e) for s, e in spans] + [np.zeros(0, dtype=np.int64)])
-    blob.add("state_time", states.time[take] if states is not None else np.zeros(0))
-    for name in _STATE_ARRAYS:
+    blob.add_quantised("state_time", states.time[take] if states is not None else np.zeros(0), 0.001)  # [s]: 1 ms
+    for name in _STATE_GAPS:
         blob.add_quantised(f"state_{name}", getattr(states, name)[take] if states is not None else np.zeros(0),
                            STATE_UNIT)
+    for name in _STATE_PER_CAR:  # car a's column, then car b's
+        values = getattr(states, name)[take].T if states is not None else np.zeros((2, 0))
+        blob.add_quantised(f"state_{name}", values.ravel(), STATE_UNIT, np.int16)
     return {"state_start": (np.cumsum(count) - count).tolist(), "state_count": count.tolist()}

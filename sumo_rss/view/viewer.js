@@ -2,8 +2,6 @@
 // `sumo-rss view` embeds this module with a JSON header (tables) and a gzip'ed blob of typed arrays (what is drawn
 // per step; layout: sumo_rss/view/payload.py). World coordinates are metres relative to header.origin, y up.
 
-const header = JSON.parse(document.getElementById("header").textContent);
-const A = arrays(await inflate(document.getElementById("blob").textContent.trim()), header.blob);
 const $ = (id) => document.getElementById(id);
 
 const COLOUR = {
@@ -17,31 +15,59 @@ const MAX_LIST_ROWS = 1000;  // rows of the episode list shown at once (sort or 
 const COLLISION_SHOWN_S = 3;  // [s] how long a collision stays marked
 
 // ---- data -------------------------------------------------------------------------------------------------------
-async function inflate(base64) {
-  const text = atob(base64);
+async function inflate(id) {
+  const text = atob(document.getElementById(id).textContent.trim());
   const bytes = new Uint8Array(text.length);
   for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
   return new Response(new Blob([bytes]).stream().pipeThrough(new DecompressionStream("gzip"))).arrayBuffer();
 }
 
-function arrays(buffer, index) {
-  const types = { f8: Float64Array, f4: Float32Array, i4: Int32Array, u4: Uint32Array, i2: Int16Array,
-    u2: Uint16Array, u1: Uint8Array };
-  const out = {};
-  for (const [name, [type, offset, length, unit]] of Object.entries(index)) {
-    if (type !== "q4") { out[name] = new types[type](buffer, offset, length); continue; }
-    const q = new Int32Array(buffer, offset, length), values = new Float32Array(length);  // quantised: × unit
-    for (let i = 0; i < length; i++) values[i] = q[i] === -2147483648 ? NaN : q[i] * unit;
-    out[name] = values;
+// The blob's arrays (layout: sumo_rss/view/blob.py): values gathered back from their byte planes, differences along
+// a key array summed up, quantised values scaled (the type's minimum: NaN).
+const TYPES = { f8: Float64Array, f4: Float32Array, i4: Int32Array, u4: Uint32Array, i2: Int16Array, u2: Uint16Array,
+  u1: Uint8Array };
+function gather(buffer, type, offset, n) {
+  const T = TYPES[type], size = T.BYTES_PER_ELEMENT, p = new Uint8Array(buffer, offset, n * size), out = new T(n);
+  if (size === 1) out.set(p);
+  else if (size === 2) for (let i = 0; i < n; i++) out[i] = p[i] | (p[n + i] << 8);
+  else if (type[0] !== "f") for (let i = 0; i < n; i++) out[i] = p[i] | (p[n + i] << 8) | (p[2 * n + i] << 16) | (p[3 * n + i] << 24);
+  else {
+    const bytes = new Uint8Array(out.buffer);
+    for (let b = 0; b < size; b++) for (let i = 0, j = b; i < n; i++, j += size) bytes[j] = p[b * n + i];
   }
   return out;
 }
 
+function arrays(buffer, index) {
+  const out = {};
+  for (const [name, [type, offset, length, options]] of Object.entries(index)) {
+    const values = gather(buffer, type, offset, length);
+    if (options.delta_by) {
+      const key = out[options.delta_by], last = new Int32Array(key.reduce((m, k) => Math.max(m, k), 0) + 1).fill(-1);
+      for (let i = 0; i < length; i++) {
+        if (last[key[i]] >= 0) values[i] += values[last[key[i]]];
+        last[key[i]] = i;
+      }
+    }
+    if (options.unit === undefined) { out[name] = values; continue; }
+    const missing = type === "i2" ? -32768 : -2147483648, scaled = new Float32Array(length);
+    for (let i = 0; i < length; i++) scaled[i] = values[i] === missing ? NaN : values[i] * options.unit;
+    out[name] = scaled;
+  }
+  return out;
+}
+
+const timings = { start: performance.now() };  // [ms since navigation] when each loading stage ended
+const header = JSON.parse(document.getElementById("header").textContent);
+timings.header = performance.now();
+const A = arrays(await inflate("scene-blob"), header.scene_blob);  // the episodes' states follow the first frame
+timings.scene = performance.now();
 const time = A.time, steps = time.length;
 const veh = header.vehicles, nVehicles = veh.ids.length;
 const egoClass = veh.classes.indexOf("ego");
 const ep = header.episodes, nEpisodes = ep.episode_key.length;
 const HEADING = Math.PI / 32767;
+let nStates = 0;  // per-car state arrays: car a's nStates values, then car b's (0 until they are read)
 
 // Per episode: from when each car is responsible (its first violation), and its violation intervals.
 const blameFrom = Array.from({ length: nEpisodes }, () => [Infinity, Infinity]);
@@ -133,6 +159,7 @@ function buildNetwork() {
   return { groups: [...groups.values()], junctions, markings };
 }
 const network = buildNetwork();
+timings.network = performance.now();
 
 function drawNetwork(c, scale) {
   c.fillStyle = COLOUR.junction;
@@ -228,23 +255,27 @@ function drawVehicles(f, open) {
   }
 }
 
+// Each pair of an open episode: a line between the cars' centres, each half coloured by its car (red: it has
+// broken its owed response in this episode by now; thicker: it is breaking it now), the selected pair underlaid.
 function drawDangerLines(f, open, t) {
-  const px = 1 / view.scale;
+  const px = 1 / view.scale, halves = [new Path2D(), new Path2D(), new Path2D(), new Path2D()];
+  const selected = new Path2D();
   for (const e of open) {
     const a = slotOf[ep.a[e]], b = slotOf[ep.b[e]];
     if (ep.a[e] < 0 || ep.b[e] < 0 || a < 0 || b < 0) continue;
     const ca = centre(f, a), cb = centre(f, b), mid = [(ca[0] + cb[0]) / 2, (ca[1] + cb[1]) / 2];
-    if (e === state.episode) {
-      ctx.lineWidth = 7 * px; ctx.strokeStyle = COLOUR.selected;
-      ctx.beginPath(); ctx.moveTo(...ca); ctx.lineTo(...cb); ctx.stroke();
-    }
+    if (e === state.episode) { selected.moveTo(...ca); selected.lineTo(...cb); }
     [[ca, 0], [cb, 1]].forEach(([end, side]) => {
       const now = violating[e].some(([s, t0, t1]) => s === side && t0 <= t + 1e-9 && t <= t1 + 1e-9);
-      ctx.strokeStyle = t + 1e-9 >= blameFrom[e][side] ? COLOUR.red : COLOUR.amber;
-      ctx.lineWidth = (now ? 4 : 2.5) * px;
-      ctx.beginPath(); ctx.moveTo(...end); ctx.lineTo(...mid); ctx.stroke();
+      const path = halves[(t + 1e-9 >= blameFrom[e][side] ? 2 : 0) + (now ? 1 : 0)];
+      path.moveTo(...end); path.lineTo(...mid);
     });
   }
+  ctx.lineWidth = 7 * px; ctx.strokeStyle = COLOUR.selected; ctx.stroke(selected);
+  halves.forEach((path, k) => {
+    ctx.lineWidth = (k % 2 ? 4 : 2.5) * px; ctx.strokeStyle = k >= 2 ? COLOUR.red : COLOUR.amber;
+    ctx.stroke(path);
+  });
 }
 
 const collisionAt = header.collisions.time.map((tc, c) => {  // where each collision happened (collider, else victim)
@@ -332,7 +363,8 @@ function setPlaying(on) {
 }
 
 function seek(step) {
-  state.time = time[Math.min(Math.max(step, 0), steps - 1)];
+  state.step = Math.min(Math.max(step, 0), steps - 1);  // now: keys pressed before the next frame add up
+  state.time = time[state.step];
   state.wall = null; state.dirty = true;
 }
 
@@ -383,14 +415,14 @@ function drawTimeline() {
   c.fillStyle = "#000"; c.fillRect(x(time[state.step]) - 1, 0, 2, h);
 }
 
-function episodeStates(e) {  // the rows of episode e's states: [first, end)
-  return e < 0 ? [0, 0] : [ep.state_start[e], ep.state_start[e] + ep.state_count[e]];
+function episodeStates(e) {  // the rows of episode e's states: [first, end) (none until they are read)
+  return e < 0 || !nStates ? [0, 0] : [ep.state_start[e], ep.state_start[e] + ep.state_count[e]];
 }
 
 function chartData() {  // what the charts of the selected episode plot (for tests and scripts)
   const [s, e] = episodeStates(state.episode);
-  const column = (name, side) => side === undefined ? Array.from(A[`state_${name}`].subarray(s, e))
-    : Array.from({ length: e - s }, (_, i) => A[`state_${name}`][2 * (s + i) + side]);
+  const column = (name, side) => e === s ? [] : side === undefined ? Array.from(A[`state_${name}`].subarray(s, e))
+    : Array.from({ length: e - s }, (_, i) => A[`state_${name}`][side * nStates + s + i]);
   return { time: column("time"), lon_gap: column("lon_gap"), lon_d_min: column("lon_d_min"),
     lat_gap: column("lat_gap"), lat_d_min: column("lat_d_min"),
     accel_a: column("accel", 0), accel_b: column("accel", 1), accel_max_a: column("accel_max", 0),
@@ -484,18 +516,18 @@ function drawChartImages() {
 
 function stateRow(e, t) {  // the row of episode e's states at time t (-1: none)
   const [s, end] = episodeStates(e);
-  const i = lastAtOrBefore(A.state_time.subarray(s, end), t);
-  return i >= 0 && Math.abs(A.state_time[s + i] - t) < 1e-6 ? s + i : -1;
+  const i = lastAtOrBefore(A.state_time.subarray(s, end), t + 5e-4);  // state times: float32 of whole ms
+  return i >= 0 && Math.abs(A.state_time[s + i] - t) < 5e-4 ? s + i : -1;
 }
 
 function showReadout() {
   const table = $("readout"), e = state.episode;
   if (e < 0) { table.innerHTML = ""; return; }
   const r = stateRow(e, time[state.step]);
-  const fmt = (v) => (v === undefined || !Number.isFinite(v) ? "–" : v.toFixed(3));
+  const fmt = (v) => (v === undefined || !Number.isFinite(v) ? "–" : v.toFixed(2));
   const cell = (name, value) => `<td data-field="${name}">${fmt(value)}</td>`;
   if (r < 0) { table.innerHTML = `<tr><td>at ${time[state.step].toFixed(1)} s the pair is not in this episode</td></tr>`; return; }
-  const at = (name, side) => A[`state_${name}`][2 * r + side];
+  const at = (name, side) => A[`state_${name}`][side * nStates + r];
   table.innerHTML = [
     `<tr><td>t [s]</td>${cell("time", A.state_time[r])}<td></td></tr>`,
     `<tr><td>lon gap / d_min [m]</td>${cell("lon_gap", A.state_lon_gap[r])}${cell("lon_d_min", A.state_lon_d_min[r])}</tr>`,
@@ -659,6 +691,7 @@ $("slider").max = String(Math.max(steps - 1, 0));
 $("vehicle-ids").innerHTML = veh.ids.slice(0, 5000).map((id) => `<option value="${escape(id)}">`).join("");
 $("scope").textContent = header.scope === "all" ? "every vehicle recorded" : `vehicles within ${header.scope.split(":")[1]} m of the ego recorded`;
 showList();
+timings.list = performance.now();
 fit();
 const ego = veh.vclass.indexOf(egoClass);
 if (egoClass >= 0 && ego >= 0) { view.scale = 6; follow(veh.ids[ego]); }
@@ -667,7 +700,7 @@ requestAnimationFrame(tick);
 
 // For tests and scripts: the page's state and a few controls.
 window.sumoRssViewer = {
-  loadMs: performance.now(), stats, header, steps, time: (k) => time[k],
+  loadMs: performance.now(), timings, stats, header, steps, time: (k) => time[k],
   state: () => ({ step: state.step, time: state.time, playing: state.playing, episode: state.episode, follow: state.follow,
     view: { ...view } }),
   seek: (k) => { seek(k); render(); }, stepAt, selectEpisode: (e) => { selectEpisode(e, true); render(); },
@@ -676,3 +709,10 @@ window.sumoRssViewer = {
   play: (speed = 1) => { state.speed = speed; setPlaying(true); }, pause: () => setPlaying(false), chartData,
 };
 document.body.dataset.ready = "true";
+
+// The episodes' states (the charts' data, most of the page's bytes), read once the replay is on screen.
+Object.assign(A, arrays(await inflate("state-blob"), header.state_blob));
+nStates = A.state_time.length;
+timings.states = performance.now();
+chartsKey = null; state.shownStep = -1; state.dirty = true;
+document.body.dataset.states = "ready";
