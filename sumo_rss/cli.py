@@ -16,6 +16,7 @@ from . import __version__
 from .errors import ScenarioError, SumoRssError
 from .rss.params import PRESETS
 from .scenario import CONTROLLERS, MAX_SEED
+from .view.command import add_view_command, run_view
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -45,12 +46,6 @@ _AUDIT_EXAMPLES = """examples:
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
   sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
   (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
-"""
-_VIEW_EXAMPLES = """examples:
-  sumo-rss view results/merge_onramp/3          # -> results/merge_onramp/3/view.html (open it in a browser)
-  sumo-rss view results/default/highway_dense/0 --out dense.html
-  sumo-rss audit my.fcd.xml --net my.net.xml --out audit/ && sumo-rss view audit/
-  sumo-rss view audit/ --net elsewhere/my.net.xml --every 10   # the net moved; a long audit: every 10th step
 """
 _NETS_EXAMPLES = """examples:
   sumo-rss nets build          # rebuild every networks/<name>/<name>.net.xml with netconvert
@@ -208,23 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
     audit.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    view = sub.add_parser("view", parents=[common], help="an interactive replay of a run or audit (view.html)",
-                          description="Write one self-contained HTML page (no server, no network needed) that "
-                                      "replays a run or an offline audit top-down: the network's lanes and "
-                                      "junctions, every recorded vehicle, the danger episodes' pairs joined by a "
-                                      "line coloured by who is responsible, the selected pair's gaps against "
-                                      "d_min and its owed responses with their bounds, violations and "
-                                      "collisions on the timeline, and a sortable list of episodes. A run "
-                                      "records the vehicles within 150 m of its ego (all with --fcd or without "
-                                      "an ego); an audit records every vehicle of its FCD.",
-                          epilog=_VIEW_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
-    view.add_argument("run_dir", type=Path, metavar="RUN_DIR",
-                      help="a run folder of 'sumo-rss run' or 'batch', or the --out folder of 'sumo-rss audit'")
-    view.add_argument("--out", type=Path, help="the page to write (default: RUN_DIR/view.html)")
-    view.add_argument("--net", type=Path,
-                      help="the network (.net.xml), where it is no longer where the run or audit read it")
-    view.add_argument("--every", type=_positive_int, default=1, metavar="N",
-                      help="keep every N-th recorded step (default 1: all; for long runs, a smaller page)")
+    add_view_command(sub, common)
 
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
                           description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
@@ -435,13 +414,6 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     return EXIT_INTERRUPTED if stop.requested else 0
 
 
-def _cmd_view(args: argparse.Namespace) -> int:
-    from .view import write_view
-
-    print(f"view: {write_view(args.run_dir, args.out, args.net, args.every)}")
-    return 0
-
-
 def _cmd_nets(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -502,7 +474,7 @@ def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
-               "view": _cmd_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
+               "view": run_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
         with warnings.catch_warnings():
             if not args.debug:

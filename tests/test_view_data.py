@@ -127,6 +127,35 @@ def test_every_episode_is_recorded_step_by_step_and_the_egos_are_pair_states_csv
         assert np.allclose(getattr(offline, name), getattr(states, name), atol=1e-3, equal_nan=True), name
 
 
+def test_the_states_of_episodes_without_the_ego_are_bounded(dense_run, monkeypatch):
+    """Past MAX_OTHER_ROWS episode-steps the auditor keeps only the ego's episodes (with a warning); theirs stay
+    whole, as pair_states.csv has them."""
+    from sumo_rss import load_scenario
+    from sumo_rss.batch.runner import param_resolver
+    from sumo_rss.road.network import RoadNetwork
+    from sumo_rss.rss import episode_states
+    from sumo_rss.rss.auditor import Auditor
+    from sumo_rss.rss.fcd import FcdReader, read_vehicle_info
+
+    monkeypatch.setattr(episode_states, "MAX_OTHER_ROWS", 3000)
+    network = RoadNetwork.from_file(HIGHWAY)
+    spec = load_scenario(dense_run / "scenario.toml")
+    auditor = Auditor(network, param_resolver(spec), "highway_dense/0", trace_class="ego", record_states=True)
+    with pytest.warns(UserWarning, match="more than 3,000 episode-steps: from .* only those of the ego class"):
+        for snapshot in FcdReader(dense_run / "fcd.xml", network, read_vehicle_info(dense_run / "routes.rou.xml",
+                                                                                      HIGHWAY)):
+            auditor.observe(snapshot)
+    states = auditor.finish().episode_states
+    full = EpisodeStates.read(dense_run / "episode_states.npz")
+    assert 0 < states.cut_at < 60.0 and np.isnan(full.cut_at)
+    ego = [k for k in full.episode_keys.tolist() if "ego" in k.split("|")[:2]]
+    rows, full_rows = states.rows(), full.rows()
+    assert ego and all(np.diff(rows[k]) == np.diff(full_rows[k]) for k in ego)
+    others = sum(int(np.diff(span)[0]) for k, span in rows.items() if k not in ego)
+    assert 2500 < others <= 3000 < sum(int(np.diff(span)[0]) for k, span in full_rows.items() if k not in ego)
+    assert all(states.time[rows[k][1] - 1] < states.cut_at for k in rows if k not in ego)
+
+
 def test_the_recorded_bounds_are_the_owed_responses(dense_run):
     """a ≤ a_acc during ρ, a ≤ −b_min after it, a ≥ −b_max for the front car (ad_rss: 3.5, 4, 8 m/s², ρ = 1 s), and
     each violation's bound and worst value are a recorded step's."""

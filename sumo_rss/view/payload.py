@@ -80,6 +80,7 @@ def build_payload(run_dir: Path, trajectories: Trajectories, net: NetGeometry, e
                             "blamed": collisions.blamed.tolist()}
     states = Blob()
     header["episodes"].update(_add_states(states, run_dir / STATE_FILE, episodes.episode_key.tolist()))
+    header["states_cut_at"] = header["episodes"].pop("states_cut_at")
     header["scene_blob"], header["state_blob"] = blob.index, states.index
     return header, blob, states
 
@@ -165,4 +166,5 @@ def _add_states(blob: Blob, path: Path, episode_keys: list[str]) -> dict:
     for name in _STATE_PER_CAR:  # car a's column, then car b's
         values = getattr(states, name)[take].T if states is not None else np.zeros((2, 0))
         blob.add_quantised(f"state_{name}", values.ravel(), STATE_UNIT, np.int16)
-    return {"state_start": (np.cumsum(count) - count).tolist(), "state_count": count.tolist()}
+    cut_at = states.cut_at if states is not None and not np.isnan(states.cut_at) else None
+    return {"state_start": (np.cumsum(count) - count).tolist(), "state_count": count.tolist(), "states_cut_at": cut_at}

@@ -433,7 +433,7 @@ function chartData() {  // what the charts of the selected episode plot (for tes
 
 // A chart of time series (NaN breaks a line) on `canvas`, drawn once into an image kept for the episode; each step
 // copies it and draws the time cursor.
-function chart(canvas, title, series, t0, t1, spans) {
+function chart(canvas, title, series, t0, t1, spans, empty) {
   const w = canvas.clientWidth, h = canvas.clientHeight, dpr = devicePixelRatio;
   const off = document.createElement("canvas");
   off.width = Math.round(w * dpr); off.height = Math.round(h * dpr);
@@ -447,7 +447,7 @@ function chart(canvas, title, series, t0, t1, spans) {
   for (const s of series) for (const v of s.v) if (Number.isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
   c.fillStyle = "#333"; c.font = "11px system-ui, sans-serif"; c.textAlign = "left";
   c.fillText(title, left, 10);
-  if (!Number.isFinite(lo)) { c.fillStyle = "#888"; c.fillText("no data", left, h / 2); return; }
+  if (!Number.isFinite(lo)) { c.fillStyle = "#888"; c.fillText(empty, left, h / 2); return; }
   lo = Math.min(lo, 0); hi = Math.max(hi, 0);
   const pad = (hi - lo) * 0.08 || 1; lo -= pad; hi += pad;
   const Y = (v) => top + (hi - v) / (hi - lo) * (h - top - bottom);
@@ -502,16 +502,19 @@ function drawChartImages() {
   const spans = e >= 0 ? violating[e].map(([, a, b]) => [a, b]) : [];
   const [ca, cb] = ["#2563eb", "#ea580c"];
   const s = (v, colour, label, dash) => ({ t: d.time, v, colour, label, dash });
+  const cut = header.states_cut_at;
+  const empty = e < 0 ? "" : !nStates ? "reading the states ..." : ep.state_count[e] > 0 ? "none here" :
+    cut !== null && ep.t_end_s[e] >= cut ? `not recorded (from ${cut} s on, only the ego's episodes were)` : "not recorded";
   chart($("chart-lon"), "longitudinal [m]", [s(d.lon_gap, "#111", "gap"), s(d.lon_d_min, COLOUR.red, "d_min", [5, 3])],
-    t0 - pad, t1 + pad, []);
+    t0 - pad, t1 + pad, [], empty);
   chart($("chart-lat"), "lateral [m]", [s(d.lat_gap, "#111", "gap"), s(d.lat_d_min, COLOUR.red, "d_min", [5, 3])],
-    t0 - pad, t1 + pad, []);
+    t0 - pad, t1 + pad, [], empty);
   chart($("chart-accel"), "acceleration [m/s²], owed bounds dashed", [s(d.accel_a, ca, "a"), s(d.accel_max_a, ca, "a ≤", [5, 3]),
     s(d.accel_min_a, ca, "a ≥", [2, 2]), s(d.accel_b, cb, "b"), s(d.accel_max_b, cb, "b ≤", [5, 3]),
-    s(d.accel_min_b, cb, "b ≥", [2, 2])], t0 - pad, t1 + pad, spans);
+    s(d.accel_min_b, cb, "b ≥", [2, 2])], t0 - pad, t1 + pad, spans, empty);
   chart($("chart-latspeed"), "lateral speed towards the other [m/s]", [s(d.lat_speed_a, ca, "a"),
     s(d.lat_speed_max_a, ca, "a ≤", [5, 3]), s(d.lat_speed_b, cb, "b"), s(d.lat_speed_max_b, cb, "b ≤", [5, 3])],
-  t0 - pad, t1 + pad, spans);
+  t0 - pad, t1 + pad, spans, empty);
 }
 
 function stateRow(e, t) {  // the row of episode e's states at time t (-1: none)
