@@ -133,29 +133,23 @@ function centre(f, i) {  // geometric centre of the vehicle in slot i
 }
 
 // ---- network ----------------------------------------------------------------------------------------------------
-function polylines(xy, start, closed) {
-  const paths = [];
-  for (let k = 0; k + 1 < start.length; k++) {
-    const p = new Path2D();
-    for (let i = start[k]; i < start[k + 1]; i++) (i === start[k] ? p.moveTo : p.lineTo).call(p, xy[2 * i], xy[2 * i + 1]);
-    if (closed) p.closePath();
-    paths.push(p);
-  }
-  return paths;
+function addLine(path, xy, first, end, closed) {  // points first..end-1 of a point array
+  path.moveTo(xy[2 * first], xy[2 * first + 1]);
+  for (let i = first + 1; i < end; i++) path.lineTo(xy[2 * i], xy[2 * i + 1]);
+  if (closed) path.closePath();
 }
 
 function buildNetwork() {
-  const lanes = polylines(A.lane_xy, A.lane_start, false);
   const groups = new Map();  // "kind|width" → one path of those lanes
-  lanes.forEach((p, k) => {
-    const kind = header.lane_kinds[A.lane_kind[k]];
-    const key = `${kind}|${A.lane_width[k].toFixed(2)}`;
+  for (let k = 0; k + 1 < A.lane_start.length; k++) {
+    const kind = header.lane_kinds[A.lane_kind[k]], key = `${kind}|${A.lane_width[k].toFixed(2)}`;
     if (!groups.has(key)) groups.set(key, { kind, width: A.lane_width[k], path: new Path2D() });
-    groups.get(key).path.addPath(kind === "walkingarea" ? polylines(A.lane_xy, A.lane_start.subarray(k, k + 2), true)[0] : p);
-  });
+    addLine(groups.get(key).path, A.lane_xy, A.lane_start[k], A.lane_start[k + 1], kind === "walkingarea");
+  }
   const junctions = new Path2D(), markings = new Path2D();
-  polylines(A.junction_xy, A.junction_start, true).forEach((p) => junctions.addPath(p));
-  polylines(A.marking_xy, A.marking_start, false).forEach((p) => markings.addPath(p));
+  const starts = (s) => s.subarray(0, Math.max(s.length - 1, 0));
+  starts(A.junction_start).forEach((s, k) => addLine(junctions, A.junction_xy, s, A.junction_start[k + 1], true));
+  starts(A.marking_start).forEach((s, k) => addLine(markings, A.marking_xy, s, A.marking_start[k + 1], false));
   return { groups: [...groups.values()], junctions, markings };
 }
 const network = buildNetwork();
@@ -408,8 +402,11 @@ function drawTimeline() {
     });
     timelineCache = { key, canvas: off };
   }
-  canvas.width = Math.round(w * dpr); canvas.height = Math.round(h * dpr);
+  if (canvas.width !== Math.round(w * dpr) || canvas.height !== Math.round(h * dpr)) {
+    canvas.width = Math.round(w * dpr); canvas.height = Math.round(h * dpr);
+  }
   const c = canvas.getContext("2d");
+  c.setTransform(1, 0, 0, 1, 0, 0);
   c.drawImage(timelineCache.canvas, 0, 0);
   c.scale(dpr, dpr);
   c.fillStyle = "#000"; c.fillRect(x(time[state.step]) - 1, 0, 2, h);
@@ -523,51 +520,66 @@ function stateRow(e, t) {  // the row of episode e's states at time t (-1: none)
   return i >= 0 && Math.abs(A.state_time[s + i] - t) < 5e-4 ? s + i : -1;
 }
 
-function showReadout() {
+function showReadout() {  // the selected episode's values at the current step (td[data-field] for scripts)
   const table = $("readout"), e = state.episode;
-  if (e < 0) { table.innerHTML = ""; return; }
-  const r = stateRow(e, time[state.step]);
-  const fmt = (v) => (v === undefined || !Number.isFinite(v) ? "–" : v.toFixed(2));
-  const cell = (name, value) => `<td data-field="${name}">${fmt(value)}</td>`;
-  if (r < 0) { table.innerHTML = `<tr><td>at ${time[state.step].toFixed(1)} s the pair is not in this episode</td></tr>`; return; }
-  const at = (name, side) => A[`state_${name}`][side * nStates + r];
-  table.innerHTML = [
-    `<tr><td>t [s]</td>${cell("time", A.state_time[r])}<td></td></tr>`,
-    `<tr><td>lon gap / d_min [m]</td>${cell("lon_gap", A.state_lon_gap[r])}${cell("lon_d_min", A.state_lon_d_min[r])}</tr>`,
-    `<tr><td>lat gap / d_min [m]</td>${cell("lat_gap", A.state_lat_gap[r])}${cell("lat_d_min", A.state_lat_d_min[r])}</tr>`,
-    ...[0, 1].map((side) => { const n = side ? "b" : "a"; return `<tr><td>${n} ${side ? ep.vehicle_b[e] : ep.vehicle_a[e]}: accel, ≤, ≥ [m/s²]</td>` +
-      `${cell(`accel_${n}`, at("accel", side))}${cell(`accel_max_${n}`, at("accel_max", side))}${cell(`accel_min_${n}`, at("accel_min", side))}</tr>` +
-      `<tr><td>${n}: lateral speed, ≤ [m/s]</td>${cell(`lat_speed_${n}`, at("lat_speed", side))}${cell(`lat_speed_max_${n}`, at("lat_speed_max", side))}</tr>`; }),
-  ].join("");
+  const r = e < 0 ? -1 : stateRow(e, time[state.step]);
+  if (r < 0) {
+    table.innerHTML = e < 0 ? "" : `<tr><td>at ${time[state.step].toFixed(1)} s the pair is not in this episode</td></tr>`;
+    return;
+  }
+  const fmt = (v) => (Number.isFinite(v) ? v.toFixed(2) : "–");
+  const cells = (...fields) => fields.map(([name, v]) => `<td data-field="${name}">${fmt(v)}</td>`).join("");
+  const row = (label, ...fields) => `<tr><td>${label}</td>${cells(...fields)}</tr>`;
+  const car = (name, side) => A[`state_${name}`][side * nStates + r];
+  const rows = [
+    row("t [s]", ["time", A.state_time[r]]),
+    row("lon gap / d_min [m]", ["lon_gap", A.state_lon_gap[r]], ["lon_d_min", A.state_lon_d_min[r]]),
+    row("lat gap / d_min [m]", ["lat_gap", A.state_lat_gap[r]], ["lat_d_min", A.state_lat_d_min[r]]),
+  ];
+  for (const [side, n, id] of [[0, "a", ep.vehicle_a[e]], [1, "b", ep.vehicle_b[e]]]) {
+    rows.push(row(`${n} ${escape(id)}: accel, ≤, ≥ [m/s²]`, [`accel_${n}`, car("accel", side)],
+      [`accel_max_${n}`, car("accel_max", side)], [`accel_min_${n}`, car("accel_min", side)]));
+    rows.push(row(`${n}: lateral speed, ≤ [m/s]`, [`lat_speed_${n}`, car("lat_speed", side)],
+      [`lat_speed_max_${n}`, car("lat_speed_max", side)]));
+  }
+  table.innerHTML = rows.join("");
 }
 
 // ---- selection and episode list ---------------------------------------------------------------------------------
 function escape(text) { return String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`); }
 
-function selectEpisode(e, jump) {
+function describe(e) {  // the selected episode's header: the pair, what happened, who owed what, the violations
+  const v = header.violations, span = (a, b) => `${a.toFixed(1)}–${b.toFixed(1)} s`;
+  const area = ep.conflict_area[e] ? ` ${escape(ep.conflict_area[e])}` : "";
+  const broken = v.episode.flatMap((x, i) => (x === e ? [i] : [])).map((i) =>
+    `<div class="note">${escape(v.vehicle_id[i])} broke ${escape(v.constraint[i])}: ${v.worst_actual[i].toFixed(2)}` +
+    ` vs bound ${v.bound[i].toFixed(2)}, ${span(v.t_start_s[i], v.t_end_s[i])}</div>`);
+  return [
+    `<h2>${escape(ep.vehicle_a[e])} (a, ${escape(ep.class_a[e])}) – ${escape(ep.vehicle_b[e])} (b, ${escape(ep.class_b[e])})</h2>`,
+    `<div>${escape(ep.situation[e])}${area}, trigger ${escape(ep.trigger[e])}, ${span(ep.t_b_s[e], ep.t_end_s[e])}` +
+    ` (ended by ${escape(ep.ended_by[e])})</div>`,
+    `<div>owed: a <b>${escape(ep.owed_a[e] || "nothing")}</b>, b <b>${escape(ep.owed_b[e] || "nothing")}</b>; ` +
+    `responsible: <b class="resp-${escape(ep.responsible[e])}">${escape(ep.responsible[e])}</b></div>`,
+    ...broken,
+  ].join("");
+}
+
+function selectEpisode(e, jump) {  // jump: to its t_b, centred on the pair
   state.episode = e;
-  const box = $("selection");
-  if (e < 0) { box.innerHTML = ""; } else {
-    const mine = header.violations.episode.map((x, i) => (x === e ? i : -1)).filter((i) => i >= 0);
-    const v = header.violations;
-    box.innerHTML = `<h2>${escape(ep.vehicle_a[e])} (a, ${escape(ep.class_a[e])}) – ${escape(ep.vehicle_b[e])} (b, ${escape(ep.class_b[e])})</h2>` +
-      `<div>${escape(ep.situation[e])}${ep.conflict_area[e] ? " " + escape(ep.conflict_area[e]) : ""}, trigger ${escape(ep.trigger[e])}, ` +
-      `${ep.t_b_s[e].toFixed(1)}–${ep.t_end_s[e].toFixed(1)} s (ended by ${escape(ep.ended_by[e])})</div>` +
-      `<div>owed: a <b>${escape(ep.owed_a[e] || "nothing")}</b>, b <b>${escape(ep.owed_b[e] || "nothing")}</b>; responsible: <b class="resp-${escape(ep.responsible[e])}">${escape(ep.responsible[e])}</b></div>` +
-      mine.map((i) => `<div class="note">${escape(v.vehicle_id[i])} broke ${escape(v.constraint[i])}: ${v.worst_actual[i].toFixed(2)} vs bound ${v.bound[i].toFixed(2)}, ${v.t_start_s[i].toFixed(1)}–${v.t_end_s[i].toFixed(1)} s</div>`).join("");
-  }
+  $("selection").innerHTML = e < 0 ? "" : describe(e);
   for (const row of document.querySelectorAll("#episodes tr.selected")) row.classList.remove("selected");
   document.querySelector(`#episodes tr[data-episode="${e}"]`)?.classList.add("selected");
   if (jump && e >= 0) {
-    seek(stepAt(ep.t_b_s[e]) + (time[stepAt(ep.t_b_s[e])] < ep.t_b_s[e] - 1e-6 ? 1 : 0));
+    const k = stepAt(ep.t_b_s[e]);
+    seek(time[k] < ep.t_b_s[e] - 1e-6 ? k + 1 : k);  // the first recorded step from t_b on
     setPlaying(false);
-    const f = vehiclesAt(state.time), a = slotOf[ep.a[e]], b = slotOf[ep.b[e]];
-    if (ep.a[e] >= 0 && ep.b[e] >= 0 && a >= 0 && b >= 0) {
-      const ca = centre(f, a), cb = centre(f, b);
+    frame = vehiclesAt(state.time);
+    const a = ep.a[e] >= 0 ? slotOf[ep.a[e]] : -1, b = ep.b[e] >= 0 ? slotOf[ep.b[e]] : -1;
+    if (a >= 0 && b >= 0) {
+      const ca = centre(frame, a), cb = centre(frame, b);
       [view.cx, view.cy] = [(ca[0] + cb[0]) / 2, (ca[1] + cb[1]) / 2];
       state.follow = -1; $("follow").value = "";
     }
-    frame = f;
   }
   timelineCache = null; state.shownStep = -1; state.dirty = true;
 }
@@ -579,17 +591,20 @@ function sortValue(e, key) {
   return v === null ? Infinity : v;
 }
 function showList() {
-  let rows = Array.from({ length: nEpisodes }, (_, e) => e);
-  const f = list.filter.toLowerCase();
-  if (f) rows = rows.filter((e) => `${ep.vehicle_a[e]} ${ep.vehicle_b[e]} ${ep.situation[e]} ${ep.responsible[e]}`.toLowerCase().includes(f));
-  const sign = list.ascending ? 1 : -1;
-  rows.sort((p, q) => { const a = sortValue(p, list.key), b = sortValue(q, list.key); return (a < b ? -1 : a > b ? 1 : p - q) * sign; });
-  const num = (v, d) => (v === null ? "" : v.toFixed(d));
+  const f = list.filter.toLowerCase(), sign = list.ascending ? 1 : -1;
+  const matches = (e) => `${ep.vehicle_a[e]} ${ep.vehicle_b[e]} ${ep.situation[e]} ${ep.responsible[e]}`.toLowerCase().includes(f);
+  const rows = Array.from({ length: nEpisodes }, (_, e) => e).filter((e) => !f || matches(e));
+  rows.sort((p, q) => {
+    const a = sortValue(p, list.key), b = sortValue(q, list.key);
+    return (a < b ? -1 : a > b ? 1 : p - q) * sign;
+  });
+  const num = (v, digits) => `<td class="num">${v === null ? "" : v.toFixed(digits)}</td>`;
+  const text = (v, css = "") => `<td${css ? ` class="${css}"` : ""}>${escape(v)}</td>`;
   $("episodes").tBodies[0].innerHTML = rows.slice(0, MAX_LIST_ROWS).map((e) =>
-    `<tr data-episode="${e}"${e === state.episode ? ' class="selected"' : ""}><td class="num">${num(ep.t_b_s[e], 1)}</td>` +
-    `<td>${escape(ep.vehicle_a[e])} – ${escape(ep.vehicle_b[e])}</td><td>${escape(ep.situation[e])}</td>` +
-    `<td class="num">${num(ep.duration_s[e], 1)}</td><td class="num">${num(ep.min_lon_margin_m[e], 2)}</td>` +
-    `<td class="num">${num(ep.min_lat_margin_m[e], 2)}</td><td class="resp-${escape(ep.responsible[e])}">${escape(ep.responsible[e])}</td></tr>`).join("");
+    `<tr data-episode="${e}"${e === state.episode ? ' class="selected"' : ""}>${num(ep.t_b_s[e], 1)}` +
+    `${text(`${ep.vehicle_a[e]} – ${ep.vehicle_b[e]}`)}${text(ep.situation[e])}${num(ep.duration_s[e], 1)}` +
+    `${num(ep.min_lon_margin_m[e], 2)}${num(ep.min_lat_margin_m[e], 2)}` +
+    `${text(ep.responsible[e], `resp-${escape(ep.responsible[e])}`)}</tr>`).join("");
   $("episode-count").textContent = rows.length > MAX_LIST_ROWS ? `(${MAX_LIST_ROWS} of ${rows.length} shown)` : `(${rows.length})`;
   for (const th of document.querySelectorAll("#episodes th")) {
     th.classList.toggle("asc", th.dataset.key === list.key && list.ascending);
@@ -610,7 +625,8 @@ function pick(sx, sy) {  // the vehicle under the pointer, else the danger line 
     const a = slotOf[ep.a[e]], b = slotOf[ep.b[e]];
     if (ep.a[e] < 0 || ep.b[e] < 0 || a < 0 || b < 0) continue;
     const [ax, ay] = toScreen(...centre(frame, a)), [bx, by] = toScreen(...centre(frame, b));
-    const L = Math.hypot(bx - ax, by - ay) || 1, u = Math.max(0, Math.min(1, ((sx - ax) * (bx - ax) + (sy - ay) * (by - ay)) / (L * L)));
+    const L = Math.hypot(bx - ax, by - ay) || 1;
+    const u = Math.max(0, Math.min(1, ((sx - ax) * (bx - ax) + (sy - ay) * (by - ay)) / (L * L)));
     const d = Math.hypot(sx - ax - u * (bx - ax), sy - ay - u * (by - ay));
     if (d < bestPx) { best = e; bestPx = d; }
   }
@@ -630,7 +646,10 @@ function follow(id) {
 }
 
 let drag = null;
-scene.addEventListener("pointerdown", (ev) => { drag = { x: ev.offsetX, y: ev.offsetY, moved: false }; scene.setPointerCapture(ev.pointerId); });
+scene.addEventListener("pointerdown", (ev) => {
+  drag = { x: ev.offsetX, y: ev.offsetY, moved: false };
+  scene.setPointerCapture(ev.pointerId);
+});
 scene.addEventListener("pointermove", (ev) => {
   if (!drag) return;
   const dx = ev.offsetX - drag.x, dy = ev.offsetY - drag.y;
@@ -642,8 +661,8 @@ scene.addEventListener("pointermove", (ev) => {
 scene.addEventListener("pointerup", (ev) => {
   if (drag && !drag.moved) {
     const hit = pick(ev.offsetX, ev.offsetY);
-    if (hit.vehicle !== undefined) { state.picked = hit.vehicle; showPicked(); } else if (hit.episode >= 0) selectEpisode(hit.episode, false);
-    else { state.picked = -1; showPicked(); }
+    if (hit.vehicle === undefined && hit.episode >= 0) selectEpisode(hit.episode, false);
+    else { state.picked = hit.vehicle ?? -1; showPicked(); }
     state.dirty = true;
   }
   drag = null;
@@ -692,7 +711,8 @@ new ResizeObserver(() => { timelineCache = null; state.shownStep = -1; state.dir
 // ---- start ------------------------------------------------------------------------------------------------------
 $("slider").max = String(Math.max(steps - 1, 0));
 $("vehicle-ids").innerHTML = veh.ids.slice(0, 5000).map((id) => `<option value="${escape(id)}">`).join("");
-$("scope").textContent = header.scope === "all" ? "every vehicle recorded" : `vehicles within ${header.scope.split(":")[1]} m of the ego recorded`;
+$("scope").textContent = header.scope === "all" ? "every vehicle recorded"
+  : `vehicles within ${header.scope.split(":")[1]} m of the ego recorded`;
 showList();
 timings.list = performance.now();
 fit();
@@ -707,7 +727,9 @@ window.sumoRssViewer = {
   state: () => ({ step: state.step, time: state.time, playing: state.playing, episode: state.episode, follow: state.follow,
     view: { ...view } }),
   seek: (k) => { seek(k); render(); }, stepAt, selectEpisode: (e) => { selectEpisode(e, true); render(); },
-  setView: (cx, cy, scale) => { state.follow = -1; view.cx = cx - header.origin[0]; view.cy = cy - header.origin[1]; view.scale = scale; render(); },
+  setView: (cx, cy, scale) => {  // world point at the centre [m], px per m
+    state.follow = -1; [view.cx, view.cy, view.scale] = [cx - header.origin[0], cy - header.origin[1], scale]; render();
+  },
   toScreen: (x, y) => toScreen(x - header.origin[0], y - header.origin[1]), follow: (id) => { follow(id); render(); },
   play: (speed = 1) => { state.speed = speed; setPlaying(true); }, pause: () => setPlaying(false), chartData,
 };
