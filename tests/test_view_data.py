@@ -258,6 +258,29 @@ def _undelta(values: np.ndarray, keys: np.ndarray) -> np.ndarray:
     return out.astype(values.dtype)
 
 
+def test_the_blob_stores_planes_differences_and_quantised_values_that_read_back():
+    """Hand-made arrays: a heading crossing ±π (int16 differences wrap around), two interleaved keys, NaN."""
+    from sumo_rss.view.blob import Blob, previous_of
+
+    keys = np.array([3, 1, 3, 1, 3], dtype=np.uint32)
+    assert previous_of(keys).tolist() == [-1, -1, 0, 1, 2]
+    heading = np.array([32000, -5, -32000, -4, 100], dtype=np.int16)
+    blob = Blob()
+    blob.add("vehicle", keys)
+    blob.add("heading", heading, delta_by="vehicle")
+    blob.add_quantised("gap", np.array([1.234, np.nan, -0.005, 1e9]), 0.01, np.int16)
+    raw = gzip.decompress(blob.compressed())
+    kind, offset, n, options = blob.index["heading"]
+    assert (kind, n, options) == ("i2", 5, {"delta_by": "vehicle"}) and offset % 8 == 0
+    low, high = raw[offset:offset + n], raw[offset + n:offset + 2 * n]  # all low bytes, then all high bytes
+    stored = (np.frombuffer(low, np.uint8).astype(np.uint16) | (np.frombuffer(high, np.uint8).astype(np.uint16) << 8))
+    assert stored.view(np.int16).tolist() == [32000, -5, 1536, 1, 32100]  # -32000 - 32000 wraps to 1536
+    arrays = _arrays(raw, blob.index, {})
+    assert arrays["heading"].tolist() == heading.tolist()
+    gap = arrays["gap"]
+    assert gap[0] == pytest.approx(1.23) and np.isnan(gap[1]) and gap[2] in (-0.0, -0.01) and gap[3] == 327.67
+
+
 def test_the_view_page_is_self_contained_and_holds_the_run_quantised(dense_run, tmp_path):
     proc = run_cli("view", str(dense_run), "--out", str(tmp_path / "v.html"))
     assert proc.returncode == 0 and "v.html" in proc.stdout, proc.stderr
