@@ -28,7 +28,7 @@ from sumo_rss.rss.auditor import Auditor  # noqa: E402
 from sumo_rss.sim.session import Session  # noqa: E402
 from sumo_rss.sim.snapshot import EGO_CLASS  # noqa: E402
 from sumo_rss.view import NEAR_EGO_M, TRAJECTORY_FILE, TrajectoryRecorder, write_view  # noqa: E402
-from sumo_rss.view.browser import headless_chromium, open_view  # noqa: E402
+from sumo_rss.view.browser import headless_chromium, missing_browser, open_view  # noqa: E402
 
 PLAY_S = 5.0  # [s] of playback per measurement
 
@@ -104,17 +104,20 @@ def main() -> None:
             page = write_view(folder / name)
             figures[f"write_view_s_{name}"] = time.perf_counter() - started
             figures[f"view_mb_{name}"] = page.stat().st_size / 1e6
-        with headless_chromium() as browser:
-            figures["browser_all"] = measure_page(browser, folder / "all" / "view.html")
-    page = figures["browser_all"]
-    figures["targets"] = {"load_under_3_s": page["load_s"] < 3.0, "file_under_20_mb": figures["view_mb_all"] < 20.0,
-                          "plays_at_30_fps": page["follow_ego"]["fps"] >= 30.0}
+        figures["targets"] = {"file_under_20_mb": figures["view_mb_all"] < 20.0}
+        reason = missing_browser()
+        if reason is None:
+            with headless_chromium() as browser:
+                page = figures["browser_all"] = measure_page(browser, folder / "all" / "view.html")
+            figures["targets"].update(load_under_3_s=page["load_s"] < 3.0,
+                                      plays_at_30_fps=page["follow_ego"]["fps"] >= 30.0)
+        else:
+            figures["browser_all"] = f"not measured: {reason}"
     record("viewer", figures, options)
     rec = figures["recording"]
     print(f"recording per step [us]: {', '.join(f'{k} {v:.0f}' for k, v in rec['us_per_step'].items())}; "
-          f"view {figures['view_mb_all']:.1f} MB (near the ego: {figures['view_mb_near']:.1f} MB), "
-          f"loads in {page['load_s']:.2f} s, {page['follow_ego']['fps']:.0f} fps following the ego, "
-          f"{page['whole_network']['fps']:.0f} fps with the whole network")
+          f"view {figures['view_mb_all']:.1f} MB (near the ego: {figures['view_mb_near']:.1f} MB); "
+          f"in the browser: {figures['browser_all']}")
 
 
 if __name__ == "__main__":
