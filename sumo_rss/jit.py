@@ -12,13 +12,13 @@ objects (``p.lon_brake_min``) are dataclasses in numpy code and named tuples of 
 
 numba is imported only by :func:`register` (the kernel's import): the auditor never pays its ~0.5 s import.
 
-**Compiled-code cache.** The kernel is compiled with ``cache=True``. numba checks a cached kernel only against its
-own source file's time stamp, not against the files of the functions it calls (numba's documented limit): a cache
-built before an edit of formulas.py would be loaded as if current. The kernel's functions therefore use a cache
-whose stamp is a hash of every sumo_rss source file that registers jitable functions (:func:`_source_stamp`), in
-numba's usual places: ``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside the source if that directory is
-writable, else the user-wide ``$XDG_CACHE_HOME/numba`` or ``~/.cache/numba`` (a read-only install). Where none is
-writable numba cannot cache, and each process compiles the kernel anew (~10-20 s).
+**Compiled-code cache.** The kernel is compiled with ``cache=True``. numba checks a cached function only against
+its own source file, not against the files of the functions it calls (numba's documented limit): a cache built
+before an edit of formulas.py would be loaded as if current. The package's compiled functions therefore use a
+cache whose stamp is their own file's and a hash of every sumo_rss module that defines jitable or kernel functions
+(:func:`cache_sources`), in numba's usual places: ``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside the
+source if that directory is writable, else the user-wide ``$XDG_CACHE_HOME/numba`` or ``~/.cache/numba`` (a
+read-only install). Where none is writable numba cannot cache, and each process compiles the kernel anew.
 """
 from __future__ import annotations
 
@@ -133,15 +133,19 @@ def _register_one(target: Callable, fn: Callable) -> None:
     overload(target, jit_options=JIT_OPTIONS, strict=False)(lambda *args, **kwargs: fn)
 
 
+def cache_sources() -> list[str]:
+    """The modules whose source stamps the kernel's cache: every sumo_rss module that defines jitable or kernel
+    functions (not a test's own: the stamp must be the same in every process)."""
+    return sorted(name for name in {fn.__module__ for _, fn in _JITABLE} | _KERNEL_MODULES | {__name__}
+                  if name.split(".")[0] == __name__.split(".")[0])
+
+
 @functools.lru_cache(maxsize=1)
 def _source_stamp() -> str:
-    """A hash of the source of every module that defines jitable functions or kernel code (what a cached kernel
-    was compiled from)."""
+    """A hash of the source of every :func:`cache_sources` module (what a cached kernel was compiled from)."""
     digest = hashlib.sha256()
-    modules = {fn.__module__ for _, fn in _JITABLE} | _KERNEL_MODULES | {__name__}
-    for name in sorted(modules):
-        module = sys.modules.get(name)
-        path = getattr(module, "__file__", None)
+    for name in cache_sources():
+        path = getattr(sys.modules.get(name), "__file__", None)
         if path is not None:
             digest.update(name.encode())
             digest.update(Path(path).read_bytes())
@@ -158,12 +162,12 @@ def _install_cache_locator() -> None:
         class Hashed(base):
             @classmethod
             def from_function(cls, py_func, py_file):  # noqa: ANN001, ANN206
-                if not Path(py_file).resolve().is_relative_to(PACKAGE):
+                if not Path(py_file).resolve().is_relative_to(PACKAGE.parent):  # the package, its tests, benches
                     return None
                 return super().from_function(py_func, py_file)
 
             def get_source_stamp(self):  # noqa: ANN202
-                return _source_stamp()
+                return super().get_source_stamp(), _source_stamp()
 
         Hashed.__name__ = Hashed.__qualname__ = f"SumoRss{base.__name__}"
         return Hashed
