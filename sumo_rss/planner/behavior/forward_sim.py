@@ -240,8 +240,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
 def rss_table(params: Any, rows: int) -> np.ndarray:
     """[rows, fields] RSS parameters (RssParams, or RssParamArrays of ``rows`` or 1 rows) in PARAM_NAMES' order:
     the kernel's form (:func:`~sumo_rss.jit.rss_row`)."""
-    return np.column_stack([np.broadcast_to(np.asarray(getattr(params, name), dtype=float).reshape(-1)[:rows],
-                                            (rows,)) for name in PARAM_NAMES])
+    table = np.array([getattr(params, name) for name in PARAM_NAMES], dtype=float).reshape(len(PARAM_NAMES), -1)
+    return np.ascontiguousarray(np.broadcast_to(table[:, :rows].T, (rows, len(PARAM_NAMES))))
 
 
 def _c(values: Any, dtype: type) -> np.ndarray:
