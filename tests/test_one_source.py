@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sumo_rss import jit
-from sumo_rss.jit import RssRow, rss_row
+from sumo_rss.jit import RssRow, rss_row, select
 from sumo_rss.planner.behavior import controllers, kernel  # noqa: F401 (registers the jitable functions)
 from sumo_rss.planner.behavior.controllers import BicycleState, IdmParams, VehicleLimits
 from sumo_rss.planner.behavior.forward_sim import rss_table
@@ -41,51 +41,34 @@ def _random_params(rng: np.random.Generator, n: int) -> RssParamArrays:
     return RssParamArrays.stack(rows)
 
 
-def _numpy_rss(v1, v2, u1, u2, gap, p1, p2) -> np.ndarray:
-    """Every formula over arrays, as the auditor calls them: [outputs, N]."""
-    out = [formulas.speed_after_response(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
-           formulas.distance_during_response(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
-           formulas.stopping_distance(v1, p1.lon_brake_max),
-           formulas.worst_case_stopping_distance(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel,
-                                                 p1.lon_brake_min),
-           formulas.lon_reach(v1, p1, p1.lon_brake_min_correct),
-           formulas.lon_safe_distance_same_dir(v1, v2, p1, p2),
-           formulas.lon_safe_distance_opposite(v1, v2, p1, p2),
-           formulas.lon_safe_distance_opposite(v1, v2, p1, p2, True),
-           formulas.lat_safe_distance(u1, u2, p1, p2),
-           formulas.lateral_reach(u1, p1),
-           formulas.is_safe_distance(gap, formulas.lon_safe_distance_same_dir(v1, v2, p1, p2)),
-           formulas.max_safe_speed_behind(gap, v2, p1, p2),
-           formulas.min_safe_speed_ahead(gap, v2, p1, p2),
-           *formulas.safe_speed_interval_same_dir(np.where(v1 > 50.0, np.inf, gap), v2, p2, gap + 10.0, v1, p2, p1),
-           formulas.combine_opposite(v1, v2, p1.min_lon_gap, p2.min_lon_gap)]
-    return np.array([np.broadcast_to(np.asarray(o, dtype=float), v1.shape) for o in out])
+@jit.jitable
+def _every_formula(v1, v2, u1, u2, gap, p1, p2):  # noqa: ANN001, ANN202
+    """Every formula, as floats: called over arrays as the auditor calls them, and compiled by _compiled_rss."""
+    low, high = formulas.safe_speed_interval_same_dir(select(v1 > 50.0, np.inf, gap), v2, p2, gap + 10.0, v1, p2, p1)
+    return (formulas.speed_after_response(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
+            formulas.distance_during_response(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
+            formulas.stopping_distance(v1, p1.lon_brake_max),
+            formulas.worst_case_stopping_distance(v1, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel,
+                                                  p1.lon_brake_min),
+            formulas.lon_reach(v1, p1, p1.lon_brake_min_correct),
+            formulas.lon_safe_distance_same_dir(v1, v2, p1, p2),
+            formulas.lon_safe_distance_opposite(v1, v2, p1, p2),
+            formulas.lon_safe_distance_opposite(v1, v2, p1, p2, True),
+            formulas.lat_safe_distance(u1, u2, p1, p2),
+            formulas.lateral_reach(u1, p1),
+            select(formulas.is_safe_distance(gap, formulas.lon_safe_distance_same_dir(v1, v2, p1, p2)), 1.0, 0.0),
+            formulas.max_safe_speed_behind(gap, v2, p1, p2),
+            formulas.min_safe_speed_ahead(gap, v2, p1, p2),
+            low, high,
+            formulas.combine_opposite(v1, v2, p1.min_lon_gap, p2.min_lon_gap))
 
 
 @jit.kernel
 def _compiled_rss(v1, v2, u1, u2, gap, t1, t2):  # noqa: ANN001, ANN202
-    """The same formulas compiled, one scalar input set at a time (parameters as the kernel passes them)."""
+    """:func:`_every_formula` compiled, one scalar input set at a time (parameters as the kernel passes them)."""
     out = np.empty((RSS_OUTPUTS, v1.size))
     for k in range(v1.size):
-        p1, p2 = rss_row(t1, k), rss_row(t2, k)
-        a, b, g = v1[k], v2[k], gap[k]
-        low, high = formulas.safe_speed_interval_same_dir(np.inf if a > 50.0 else g, b, p2, g + 10.0, a, p2, p1)
-        row = (formulas.speed_after_response(a, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
-               formulas.distance_during_response(a, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel),
-               formulas.stopping_distance(a, p1.lon_brake_max),
-               formulas.worst_case_stopping_distance(a, p1.lon_accel_max, p1.response_time, p1.max_speed_on_accel,
-                                                     p1.lon_brake_min),
-               formulas.lon_reach(a, p1, p1.lon_brake_min_correct),
-               formulas.lon_safe_distance_same_dir(a, b, p1, p2),
-               formulas.lon_safe_distance_opposite(a, b, p1, p2),
-               formulas.lon_safe_distance_opposite(a, b, p1, p2, True),
-               formulas.lat_safe_distance(u1[k], u2[k], p1, p2),
-               formulas.lateral_reach(u1[k], p1),
-               1.0 if formulas.is_safe_distance(g, formulas.lon_safe_distance_same_dir(a, b, p1, p2)) else 0.0,
-               formulas.max_safe_speed_behind(g, b, p1, p2),
-               formulas.min_safe_speed_ahead(g, b, p1, p2),
-               low, high,
-               formulas.combine_opposite(a, b, p1.min_lon_gap, p2.min_lon_gap))
+        row = _every_formula(v1[k], v2[k], u1[k], u2[k], gap[k], rss_row(t1, k), rss_row(t2, k))
         for j in range(RSS_OUTPUTS):
             out[j, k] = row[j]
     return out
@@ -118,7 +101,8 @@ def test_rss_formulas_agree_compiled_and_vectorised():
     u1, u2 = rng.uniform(-3.0, 3.0, N), rng.uniform(-3.0, 3.0, N)
     gap = rng.uniform(-20.0, 300.0, N)
     p1, p2 = _random_params(rng, N), _random_params(rng, N)
-    vectorised = _numpy_rss(v1, v2, u1, u2, gap, p1, p2)
+    vectorised = np.array([np.broadcast_to(np.asarray(o, dtype=float), (N,))
+                           for o in _every_formula(v1, v2, u1, u2, gap, p1, p2)])
     compiled = _compiled_rss(v1, v2, u1, u2, gap, rss_table(p1, N), rss_table(p2, N))
     assert np.array_equal(np.isfinite(vectorised), np.isfinite(compiled))
     assert np.isinf(vectorised).any() and np.isfinite(vectorised).all(axis=0).any()  # both kinds of input occur
