@@ -58,10 +58,20 @@ def test_city_distances_are_those_of_an_all_pairs_search_within_the_horizon(city
     reach = GraphReach(net.edge_successors, net.edge_length)
     reach.require(horizon)
     found = reach.between(np.repeat(sources, n), np.tile(np.arange(n), len(sources))).reshape(len(sources), n)
-    within = exact <= net.edge_length[sources][:, None] + reach.horizon
+    within = exact <= net.edge_length[sources][:, None] + horizon
     assert np.array_equal(np.isfinite(found), within)
     assert np.allclose(found[within], exact[within], rtol=1e-12, atol=0.0)
     assert 0 < within.sum() < share * within.size  # a horizon, not the whole city
+    # What a step looks up depends on its own reach, not on how far an earlier step searched.
+    searched_farther = GraphReach(net.edge_successors, net.edge_length)
+    searched_farther.require(1000.0)
+    searched_farther.between(sources, sources)
+    searched_farther.require(horizon)
+    assert searched_farther.horizon > reach.horizon
+    assert np.array_equal(searched_farther.between(np.repeat(sources, n), np.tile(np.arange(n), len(sources))
+                                                   ).reshape(len(sources), n), found)
+    assert all(np.array_equal(a, b) for s in sources[:5].tolist()
+               for a, b in zip(searched_farther.row(s), reach.row(s)))
 
 
 def test_the_models_hold_nothing_that_grows_with_the_square_of_the_network(city):
