@@ -255,8 +255,9 @@ class FcdReader:
             np.zeros(0, dtype=int)
         cx, cy = x[k] - 0.5 * length[k] * np.cos(heading[k]), y[k] - 0.5 * length[k] * np.sin(heading[k])
         n = len(lane) if fronts else 0
-        if not n and not k.size:
-            return None, (k, np.zeros(0), np.zeros(0))
+        if not n and not k.size:  # nothing to project (also a step without vehicles)
+            empty = np.zeros(0)
+            return ((empty, empty, empty) if fronts else None), (k, empty, empty)
         s, d, lane_heading = self.network.frenet(np.concatenate([lane[:n], lane[k]]), np.concatenate([x[:n], cx]),
                                                  np.concatenate([y[:n], cy]))
         return ((s[:n], d[:n], lane_heading[:n]) if fronts else None), (k, s[n:], lane_heading[n:])
