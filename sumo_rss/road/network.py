@@ -155,7 +155,7 @@ class RoadNetwork:
         return self._lane_order[pos]
 
     def require_reach(self, horizon: float) -> None:
-        """Make :meth:`edge_distances` and :meth:`lane_distances` reach at least ``horizon`` [m] beyond the end of
+        """Make :meth:`edge_distances` and :meth:`lane_distances` reach exactly ``horizon`` [m] beyond the end of
         the edge (lane) they start from."""
         self.edge_reach.require(horizon)
         self.lane_reach.require(horizon)
