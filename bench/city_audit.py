@@ -139,9 +139,10 @@ def main() -> None:
                 audit += [flag, str(value)]
         summary, wall, cpu, peak = _child(audit, folder / "cold_cache")
         network = RoadNetwork.from_file(options.net)
+        fcd_mb = _xml_bytes(run["fcd"]) / 1e6  # before the folder (SUMO's run) is removed
     pair_steps = int(re.search(r"(\d+) pair-steps", summary).group(1))  # type: ignore[union-attr]
     figures = {"net": str(options.net), "edges": len(network.edge_ids), "lanes": len(network.lane_ids),
-               "simulated_s": simulated, "fcd_mb": _xml_bytes(run["fcd"]) / 1e6, "sumo_wall_s": sumo_wall,
+               "simulated_s": simulated, "fcd_mb": fcd_mb, "sumo_wall_s": sumo_wall,
                "network_load_cold_s": cold, "network_load_cached_s": warm, "network_load_peak_rss_mb": load_peak,
                "fcd_plain_mb_per_s": plain_mb_s, "fcd_gzip_mb_per_s": gzip_mb_s,
                "audit_wall_s": wall, "audit_cpu_s": cpu, "audit_peak_rss_mb": peak,
