@@ -8,6 +8,7 @@ import os
 import platform
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from sumo_rss.files import write_json
@@ -15,14 +16,18 @@ from sumo_rss.files import write_json
 RESULTS = Path(__file__).resolve().parent / "results.json"
 
 
-def arguments(doc: str, script: str) -> argparse.Namespace:
-    """``--help`` (the benchmark's docstring) and ``--no-record`` (print the figures, leave results.json alone)."""
+def arguments(doc: str, script: str, add: Callable[[argparse.ArgumentParser], None] | None = None
+              ) -> argparse.Namespace:
+    """``--help`` (the benchmark's docstring) and ``--no-record`` (print the figures, leave results.json alone),
+    and the benchmark's own options (``add(parser)``)."""
     parser = argparse.ArgumentParser(
         prog=f"python bench/{script}", description=doc, formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"examples:\n  PYTHONPATH=. python bench/{script}              # measure, record in results.json\n"
                f"  PYTHONPATH=. python bench/{script} --no-record  # measure and print only")
     parser.add_argument("--no-record", dest="record", action="store_false",
                         help="print the figures instead of recording them in bench/results.json")
+    if add is not None:
+        add(parser)
     return parser.parse_args()
 
 

@@ -9,6 +9,7 @@ import argparse
 import math
 import signal
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -357,9 +358,10 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .batch.runner import param_resolver
+    from .road.junctions import JunctionModel
     from .road.network import RoadNetwork
     from .rss.auditor import ParamResolver
-    from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
+    from .rss.fcd import AuditProgress, FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
     from .view.trajectories import TRAJECTORY_FILE, TrajectoryRecorder
 
@@ -367,12 +369,21 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         raise FcdError(f"{args.fcd}: FCD file not found")
     if not args.net.is_file():
         raise FcdError(f"{args.net}: network file not found")
+    # Where the time goes before the first step (a city network's first load takes seconds), on a terminal only: an
+    # error stays the one line on stderr that scripts read.
+    shown = not args.quiet and sys.stderr.isatty()
+    say = (lambda text: print(f"audit: {text}", file=sys.stderr, flush=True)) if shown else (lambda _: None)
+    say(f"loading the network {args.net} ...")
+    started = time.perf_counter()
     try:  # before the vTypes, which SUMO loads on this network
         network = RoadNetwork.from_file(args.net)
+        junctions = JunctionModel.from_file(args.net, network)  # built once, for the auditor
     except ValueError as exc:  # it names the file
         raise FcdError(str(exc)) from None
     except SAXException as exc:
         raise FcdError(f"{args.net}: not a SUMO network ({exc})") from None
+    say(f"network of {len(network.edge_ids)} edges, {len(junctions.links)} junction links and "
+        f"{len(junctions.conflicts)} conflict areas ready in {time.perf_counter() - started:.1f} s")
     for path in args.vtypes or ():
         if not path.is_file():
             raise FcdError(f"{path}: vType file not found")
@@ -396,8 +407,13 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     # Shown from 0.5 s on: not for a short audit, nor before an error in the file's first steps.
     with tqdm(total=args.fcd.stat().st_size, unit="B", unit_scale=True, desc="audit", disable=args.quiet,
               file=sys.stderr, delay=0.5) as bar:
-        def on_progress(done: int) -> None:
-            bar.update(done - bar.n)
+        begun, done = time.perf_counter(), [AuditProgress(0, 0.0, 0, 0)]
+
+        def on_progress(progress: AuditProgress) -> None:
+            done[0] = progress
+            rate = progress.pair_steps / max(time.perf_counter() - begun, 1e-9)
+            bar.set_postfix_str(f"t={progress.time:.0f} s, {rate / 1e3:.0f}k pair-steps/s", refresh=False)
+            bar.update(progress.bytes_read - bar.n)
 
         stop = _StopRequest.on_signals("the audit")
         recorder = TrajectoryRecorder(args.net)  # every vehicle: what 'sumo-rss view' replays, without the FCD
@@ -406,11 +422,12 @@ def _cmd_audit(args: argparse.Namespace) -> int:
                            run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop,
                            record_states=True, on_snapshot=recorder.add)
         if not stop.requested:
-            on_progress(bar.total)  # read to its end
+            bar.update(bar.total - bar.n)  # read to its end
     result.to_csv(args.out)
     recorder.write(args.out / TRAJECTORY_FILE)
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
-          f"violations, {len(result.collisions)} collisions -> {args.out}")
+          f"violations, {len(result.collisions)} collisions -> {args.out} ({done[0].steps} steps, "
+          f"{done[0].pair_steps} pair-steps, audited in {time.perf_counter() - begun:.1f} s)")
     return EXIT_INTERRUPTED if stop.requested else 0
 
 

@@ -3,6 +3,7 @@ planning frame on the straight part of the highway net."""
 from __future__ import annotations
 
 import copy
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ import tomli_w
 
 from sumo_rss.planner.lanes import lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
+from sumo_rss.road.model_cache import CACHE_ENV
 from sumo_rss.road.network import RoadNetwork
 
 REPO = Path(__file__).resolve().parent.parent
@@ -32,6 +34,15 @@ VALID_SCENARIO = {
             "depart_speed": 20.0, "desired_speed": 30.0},
     "rss": {"preset": "ad_rss"},
 }
+
+
+@pytest.fixture(scope="session", autouse=True)
+def road_model_cache(tmp_path_factory) -> Path:
+    """The road model cache of this test session (a fresh folder; also for the commands tests start): tests never
+    read a user's cache, nor depend on a warm one."""
+    folder = tmp_path_factory.mktemp("road_model_cache")
+    os.environ[CACHE_ENV] = str(folder)
+    return folder
 
 
 @pytest.fixture(scope="module")

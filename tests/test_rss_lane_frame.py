@@ -73,7 +73,7 @@ def test_a_car_deep_in_the_curve_is_placed_along_the_lanes_not_on_the_straight_e
     assert pairs.v_lat_a[0] == 0.0 and pairs.v_lat_b[0] == 0.0
     assert pairs.lat_gap[0] == pytest.approx(lateral_gap, abs=0.05)
     # Along the lanes: 120 m to the end of hw1, the junction's internal lane, 30 m into hw2, minus a car length.
-    hw1_to_hw2 = float(net.edge_distance[net.edge_indices(["hw1"])[0], net.edge_indices(["hw2"])[0]])
+    hw1_to_hw2 = float(net.edge_distances(net.edge_indices(["hw1"]), net.edge_indices(["hw2"]))[0])
     internal = hw1_to_hw2 - float(net.edge_length[net.edge_indices(["hw1"])[0]])
     assert pairs.lon_gap[0] == pytest.approx(120.0 + internal + 30.0 - LENGTH, abs=0.5)
 
@@ -102,7 +102,7 @@ def test_a_car_following_another_through_a_turn_is_in_its_lane(rear_lane, front_
     net = RoadNetwork.from_file(INTERSECTION_TLS)
     rear = int(net.lane_indices([rear_lane])[0])
     pairs = _pair(net, [("a", front_lane, 5.0, 2.0, route), ("b", rear_lane, net.lane_length[rear] - 10.0, 10.0, route)])
-    through = net.edge_distance[net.lane_edge[rear], net.edge_indices([front_lane.rsplit("_", 1)[0]])[0]] - \
+    through = net.edge_distances(net.lane_edge[[rear]], net.edge_indices([front_lane.rsplit("_", 1)[0]]))[0] - \
         net.lane_length[rear]
     assert len(pairs) == 1 and pairs.kind[0] == 0
     assert pairs.lat_gap[0] == pytest.approx(-WIDTH, abs=0.01)

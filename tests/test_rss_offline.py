@@ -187,8 +187,8 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
     assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
     # A route file or a non-XML file given as the network is named as the network, not as a vType problem.
     (tmp_path / "junk.xml").write_text("hello")
-    for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: expected a SUMO network (.net.xml) with "
-                                                         "lanes, found none"),
+    for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: expected a SUMO network (root element "
+                                                         "<net>), found <routes>"),
                          (tmp_path / "junk.xml", "junk.xml: not a SUMO network (")):
         proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(net), "--vtypes",
                        str(dense_run / "routes.rou.xml"))

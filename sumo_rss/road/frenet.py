@@ -12,6 +12,9 @@ from typing import Any
 
 import numpy as np
 
+PROJECT_CHUNK = 1 << 18  # points x segments searched at once by LaneShapes.project (bounds its temporary memory)
+CHUNK_COST = 4096  # [segments] searching this many costs about as much as one more numpy pass over a chunk
+
 
 @dataclass(frozen=True, eq=False)
 class LaneShapes:
@@ -44,14 +47,38 @@ class LaneShapes:
         side of the hinted one are searched instead of all of them.
         """
         lane = np.asarray(lane, dtype=int)
-        n_seg = self.count[lane] - 1  # [n]
-        if s_hint is None:
-            seg_idx = np.broadcast_to(np.arange(self.points.shape[1] - 1), (lane.shape[0], self.points.shape[1] - 1))
-        else:
+        x, y = np.broadcast_to(np.asarray(x, dtype=float), lane.shape), np.broadcast_to(np.asarray(y, dtype=float),
+                                                                                    lane.shape)
+        if s_hint is not None:
             seg_idx = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
+            return self._project(lane, x, y, seg_idx)
+        # Every segment of each point's lane, in chunks of points whose lanes have about as many segments (the
+        # padding of the longest lane's points would otherwise be searched for every point).
+        n_seg = self.count[lane] - 1
+        widest = int(n_seg.max(initial=1))
+        if len(lane) * widest <= CHUNK_COST:  # too little to be worth a split
+            return self._project(lane, x, y, np.arange(widest)[None, :])
+        order = np.argsort(n_seg, kind="stable")
+        bounds = _chunks(n_seg[order], PROJECT_CHUNK)
+        if len(bounds) == 2:
+            return self._project(lane, x, y, np.arange(widest)[None, :])
+        out = tuple(np.empty(lane.shape) for _ in range(3))
+        for start, end in zip(bounds[:-1], bounds[1:]):
+            rows = order[start:end]
+            for full, part in zip(out, self._project(lane[rows], x[rows], y[rows],
+                                                     np.arange(int(n_seg[rows[-1]]))[None, :])):
+                full[rows] = part
+        return out
+
+    def _project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, seg_idx: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` onto the segments ``seg_idx`` ([n, k], or [1, k] for every point) of each point's lane,
+        those beyond its ends left out."""
+        n_seg = self.count[lane] - 1  # [n]
+        seg_idx = np.broadcast_to(seg_idx, (lane.shape[0], seg_idx.shape[1]))
         real = (seg_idx >= 0) & (seg_idx < n_seg[:, None])
         seg_idx = np.clip(seg_idx, 0, self.points.shape[1] - 2)
-        p = np.stack([np.asarray(x, dtype=float), np.asarray(y, dtype=float)], axis=-1)[:, None, :]
+        p = np.stack([x, y], axis=-1)[:, None, :]
         a = self.points[lane[:, None], seg_idx]  # [n, k, 2] segment starts
         seg = self.points[lane[:, None], seg_idx + 1] - a
         length2 = np.einsum("nkj,nkj->nk", seg, seg)
@@ -97,3 +124,25 @@ class LaneShapes:
         or last one beyond a lane's ends)."""
         k = (self.cumulative[lane] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
         return np.clip(k, 0, self.count[lane] - 2)
+
+
+def _chunks(n_seg: np.ndarray, budget: int) -> list[int]:
+    """Boundaries of consecutive chunks of ``n_seg`` (ascending segment counts), searched at once by
+    :meth:`LaneShapes.project` with as many segments as their last point's lane has: a new chunk begins where
+    widening the current one to a point's count would search more padding than a chunk's own cost is worth
+    (CHUNK_COST segments), or the chunk would exceed ``budget`` points x segments."""
+    bounds, points, width = [0], 0, 0
+    values, first, counts = np.unique(n_seg, return_index=True, return_counts=True)
+    for value, start, count in zip(values.tolist(), first.tolist(), counts.tolist()):
+        if points and (points * (value - width) > CHUNK_COST or (points + count) * value > budget):
+            bounds.append(start)
+            points = 0
+        # A run of one count too long for the budget alone is split.
+        while points + count > max(budget // value, 1):
+            take = max(budget // value - points, 1)
+            start, count, points = start + take, count - take, 0
+            bounds.append(start)
+        width, points = value, points + count
+    if bounds[-1] != len(n_seg):
+        bounds.append(len(n_seg))
+    return bounds

@@ -12,12 +12,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import sumolib
 
-from .frenet import LaneShapes
+from .link_pairs import LinkBlocks, LinkPairs
+from .model_cache import cached
+from .net_file import read_net
 from .network import RoadNetwork
+from .strip_overlap import strip_overlaps
 
-SAMPLE_SPACING_M = 0.2  # [m] resolution of conflict-area boundaries
 SIGNAL_RANK = {"G": 2, "g": 1}  # every other state ('y', 'r', 'u', 'o', 's', ...) ranks 0
 
 
@@ -53,7 +54,8 @@ class ConflictArea:
 
 @dataclass(frozen=True, eq=False)
 class JunctionModel:
-    """Links and conflict areas, plus lookup arrays for vectorised per-step use (L links, n lanes)."""
+    """Links and conflict areas, plus lookup arrays for vectorised per-step use (L links, n lanes; the link-pair
+    tables are indexed as [L, L] arrays, stored per junction)."""
 
     links: tuple[Link, ...]
     conflicts: tuple[ConflictArea, ...]
@@ -64,16 +66,23 @@ class JunctionModel:
     link_to_edge: np.ndarray  # [L] edge the link leads into
     link_tls: np.ndarray  # [L] signal id ('' if none)
     link_tls_index: np.ndarray  # [L] index into the signal state (-1 if none)
-    area_index: np.ndarray  # [L, L] conflict area of a link pair, -1 if none
-    area_start: np.ndarray  # [L, L] start of that area along the first link's path [m]
-    area_end: np.ndarray  # [L, L] its end [m]
-    static_priority: np.ndarray  # [L, L] +1: the first link has priority, -1: it yields, 0: same
+    area_index: LinkPairs  # [L, L] conflict area of a link pair, -1 if none
+    area_start: LinkPairs  # [L, L] start of that area along the first link's path [m]
+    area_end: LinkPairs  # [L, L] its end [m]
+    static_priority: LinkPairs  # [L, L] +1: the first link has priority, -1: it yields, 0: same
     link_to_lane: np.ndarray  # [L] lane the link leads into
     link_length: np.ndarray  # [L] length of the link's internal path [m]
 
     @classmethod
     def from_file(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
-        net = sumolib.net.readNet(str(path), withInternal=True)
+        """The junction model of the network file ``path`` (whose road model is ``network``): from the road model
+        cache (:mod:`.model_cache`) when it holds one of this file's content, else built and stored there."""
+        return cached(Path(path), "junctions", lambda: cls.build(path, network), keep=True)
+
+    @classmethod
+    def build(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
+        """The junction model of the network file ``path``, read and built (no cache)."""
+        net = read_net(path)
         lane_idx = {lane_id: k for k, lane_id in enumerate(network.lane_ids)}
         links: list[Link] = []
         prohibits: dict[str, list[str]] = {}
@@ -116,16 +125,17 @@ class JunctionModel:
         lane_link_offset = np.zeros(n_lanes)
         for lane, (k, offset) in link_of_lane.items():
             lane_link[lane], lane_link_offset[lane] = k, offset
-        area_index = np.full((n_links, n_links), -1, dtype=int)
-        area_start = np.zeros((n_links, n_links))
-        area_end = np.zeros((n_links, n_links))
-        static_priority = np.zeros((n_links, n_links), dtype=np.int8)
+        blocks = LinkBlocks.of([link.junction for link in links])
+        area_index = LinkPairs.full(blocks, -1, int)
+        area_start, area_end = LinkPairs.full(blocks, 0.0, float), LinkPairs.full(blocks, 0.0, float)
+        static_priority = LinkPairs.full(blocks, 0, np.int8)
         for m, c in enumerate(conflicts):
             a, b = c.link_a, c.link_b
-            area_index[a, b] = area_index[b, a] = m
-            area_start[a, b], area_end[a, b], area_start[b, a], area_end[b, a] = c.a_start, c.a_end, c.b_start, c.b_end
             sign = {"a": 1, "b": -1, "same": 0}[c.static_priority]
-            static_priority[a, b], static_priority[b, a] = sign, -sign
+            for table, ab, ba in ((area_index, m, m), (area_start, c.a_start, c.b_start), (area_end, c.a_end, c.b_end),
+                                  (static_priority, sign, -sign)):
+                table.set(a, b, ab)
+                table.set(b, a, ba)
         return cls(tuple(links), tuple(conflicts), link_of_lane, lane_links, lane_link, lane_link_offset,
                    np.array([network.lane_edge[link.to_lane] for link in links], dtype=int),
                    np.array([link.tls for link in links], dtype=object),
@@ -164,45 +174,36 @@ def _path_polyline(path: tuple[int, ...], network: RoadNetwork) -> np.ndarray:
     return np.asarray(pts, dtype=float)
 
 
-def _overlap_interval(src: np.ndarray, src_width: float, dst: np.ndarray, dst_width: float) -> tuple[float, float] | None:
-    """s-interval along polyline ``src`` where its strip overlaps the strip of ``dst`` (None if nowhere)."""
-    shapes = LaneShapes.from_polylines([src, dst])
-    total = float(shapes.cumulative[0, -1])
-    s = np.arange(0.0, total + 1e-9, SAMPLE_SPACING_M)
-    xy = np.column_stack([np.interp(s, shapes.cumulative[0, : len(src)], src[:, 0]),
-                          np.interp(s, shapes.cumulative[0, : len(src)], src[:, 1])])
-    s_dst, d_dst, heading_dst = shapes.project(np.ones(len(s), dtype=int), xy[:, 0], xy[:, 1])
-    heading_src = shapes.heading_at(np.zeros(len(s), dtype=int), s)
-    cos = np.abs(np.cos(heading_src - heading_dst))
-    inside = (np.abs(d_dst) < dst_width / 2.0 + src_width / 2.0 * cos) & (s_dst >= 0.0) & \
-        (s_dst <= float(shapes.cumulative[1, -1]))
-    if not np.any(inside):
-        return None
-    return float(s[inside].min()), float(s[inside].max())
-
-
 def _conflict_areas(links: list[Link], network: RoadNetwork, foes: dict[str, list[str]],
                     prohibits: dict[str, list[str]]) -> list[ConflictArea]:
     polylines = [_path_polyline(link.path, network) for link in links]
-    widths = [float(network.lane_width[link.path[0]]) for link in links]
+    widths = np.array([float(network.lane_width[link.path[0]]) for link in links])
     by_junction: dict[str, list[int]] = {}
     for k, link in enumerate(links):
         by_junction.setdefault(link.junction, []).append(k)
-    areas = []
+    foe_pairs = []  # (a, b): links of one junction that SUMO marks as foes
     for junction, members in by_junction.items():
         n = len(foes[junction])
         for ia, a in enumerate(members):
             for b in members[ia + 1:]:
-                la, lb = links[a], links[b]
-                if foes[junction][la.index][n - 1 - lb.index] != "1":
-                    continue
-                on_a = _overlap_interval(polylines[a], widths[a], polylines[b], widths[b])
-                on_b = _overlap_interval(polylines[b], widths[b], polylines[a], widths[a])
-                if on_a is None or on_b is None:
-                    continue
-                a_yields = prohibits[junction][la.index][n - 1 - lb.index] == "1"
-                b_yields = prohibits[junction][lb.index][n - 1 - la.index] == "1"
-                priority = "b" if a_yields and not b_yields else "a" if b_yields and not a_yields else "same"
-                kind = "merging" if la.to_lane == lb.to_lane else "crossing"
-                areas.append(ConflictArea(f"{junction}:{la.index}x{lb.index}", a, b, *on_a, *on_b, kind, priority))
+                if foes[junction][links[a].index][n - 1 - links[b].index] == "1":
+                    foe_pairs.append((a, b))
+    pair_a = np.array([a for a, _ in foe_pairs], dtype=int)
+    pair_b = np.array([b for _, b in foe_pairs], dtype=int)
+    # Where each strip overlaps the other, along each of the two paths.
+    start, end = strip_overlaps(polylines, widths, np.concatenate([pair_a, pair_b]), np.concatenate([pair_b, pair_a]))
+    on_a = np.column_stack([start[: len(foe_pairs)], end[: len(foe_pairs)]]).tolist()
+    on_b = np.column_stack([start[len(foe_pairs):], end[len(foe_pairs):]]).tolist()
+    areas = []
+    for (a, b), interval_a, interval_b in zip(foe_pairs, on_a, on_b):
+        if np.isnan(interval_a[0]) or np.isnan(interval_b[0]):
+            continue
+        la, lb = links[a], links[b]
+        n = len(foes[la.junction])
+        a_yields = prohibits[la.junction][la.index][n - 1 - lb.index] == "1"
+        b_yields = prohibits[la.junction][lb.index][n - 1 - la.index] == "1"
+        priority = "b" if a_yields and not b_yields else "a" if b_yields and not a_yields else "same"
+        kind = "merging" if la.to_lane == lb.to_lane else "crossing"
+        areas.append(ConflictArea(f"{la.junction}:{la.index}x{lb.index}", a, b, *interval_a, *interval_b, kind,
+                                  priority))
     return areas

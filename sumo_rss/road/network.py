@@ -1,21 +1,20 @@
 """RoadNetwork: the static road model of a SUMO .net.xml (lanes, edges, lane graph, geometry).
 
-Read with sumolib, then held as numpy arrays indexed by lane and edge number, so the auditor maps the lane ids of
-a whole snapshot to indices and looks up geometry and topology without Python loops.
+Read with :mod:`.net_file`, then held as numpy arrays indexed by lane and edge number, so the auditor maps the lane
+ids of a whole snapshot to indices and looks up geometry and topology without Python loops. Distances along the
+edge and lane graphs are searched per source within a horizon, on first need (:class:`.reach.GraphReach`).
 """
 from __future__ import annotations
 
-import heapq
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import sumolib
 
 from .frenet import LaneShapes
-
-REACH_HORIZON_M = 3000.0  # [m] edge-to-edge distances beyond this are not needed (and stored as inf)
+from .model_cache import cached
+from .net_file import read_net
+from .reach import GraphReach
 
 
 class UnknownLaneError(ValueError):
@@ -30,9 +29,10 @@ class RoadNetwork:
     ``lane_length[k]``, ``lane_width[k]`` [m], ``lane_speed[k]`` [m/s], ``lane_offset[k]`` (centre's offset from the edge's right border,
     [m]), ``lane_left[k]`` / ``lane_right[k]`` (neighbour lane index or -1), ``lane_successors[k]``.
     Per edge e: ``edge_ids[e]``, ``edge_internal[e]``, ``edge_opposite[e]`` (edge between the same nodes in
-    the other direction, or -1) and ``edge_distance[e, f]``: the shortest distance [m] from the start of e to the
-    start of f along the lane graph (inf if f is not reachable within REACH_HORIZON_M); ``edge_exit[e]``: e
-    itself for a normal edge, the normal edge an internal (junction) edge leads to otherwise.
+    the other direction, or -1), ``edge_successors[e]`` and ``edge_exit[e]``: e itself for a normal edge, the normal
+    edge an internal (junction) edge leads to otherwise. ``edge_reach`` / ``lane_reach``: shortest distances [m]
+    from the start of an edge (lane) to the start of another along the lane graph, within a horizon beyond its end
+    (:meth:`edge_distances`, :meth:`lane_distances`).
     """
 
     path: Path
@@ -53,16 +53,25 @@ class RoadNetwork:
     edge_internal: np.ndarray
     edge_opposite: np.ndarray
     edge_length: np.ndarray
-    edge_distance: np.ndarray
+    edge_successors: tuple[tuple[int, ...], ...]
     edge_exit: np.ndarray
+    edge_reach: GraphReach
+    lane_reach: GraphReach
     _lane_order: np.ndarray  # argsort of lane_ids, for vectorised id → index lookups
     _edge_lookup: dict[str, int]
-    _downstream: dict[int, np.ndarray] = field(default_factory=dict, repr=False)  # lanes_downstream, per lane
 
     @classmethod
     def from_file(cls, path: str | Path) -> RoadNetwork:
+        """The road model of the network file ``path``: from the road model cache (:mod:`.model_cache`) when it
+        holds one of this file's content, else built (:meth:`build`) and stored there."""
         path = Path(path)
-        net = sumolib.net.readNet(str(path), withInternal=True)
+        return replace(cached(path, "network", lambda: cls.build(path)), path=path)
+
+    @classmethod
+    def build(cls, path: str | Path) -> RoadNetwork:
+        """The road model of the network file ``path``, read and built (no cache)."""
+        path = Path(path)
+        net = read_net(path)
         edges = sorted(net.getEdges(withInternal=True), key=lambda e: e.getID())
         edge_index = {e.getID(): i for i, e in enumerate(edges)}
         lanes = [lane for e in edges for lane in e.getLanes()]
@@ -105,6 +114,7 @@ class RoadNetwork:
         edge_succ = [set() for _ in edges]
         for k, nxt in enumerate(successors):
             edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt)
+        edge_successors = tuple(tuple(sorted(nxt)) for nxt in edge_succ)
         lane_ids = np.array([lane.getID() for lane in lanes], dtype=str)
         # A lane ends (an acceleration lane, a lane drop) where it leads nowhere while its edge goes on. A turnaround
         # does not make the edge go on: netconvert connects only the leftmost lane of a dead end to the opposite
@@ -113,10 +123,11 @@ class RoadNetwork:
         edge_goes_on[lane_edge[np.flatnonzero(onward)]] = True
         lane_ends = np.array([not successors[k] and e.getFunction() != "internal" and edge_goes_on[lane_edge[k]]
                               for k, e in enumerate(lane.getEdge() for lane in lanes)])
+        lane_length = np.array([lane.getLength() for lane in lanes])
         return cls(
             path=path, lane_ids=lane_ids, lane_edge=lane_edge,
             lane_index=np.array([lane.getIndex() for lane in lanes]),
-            lane_length=np.array([lane.getLength() for lane in lanes]),
+            lane_length=lane_length,
             lane_width=np.array([lane.getWidth() for lane in lanes]),
             lane_speed=np.array([lane.getSpeed() for lane in lanes]),
             lane_offset=offsets, lane_left=left, lane_right=right, lane_successors=tuple(successors),
@@ -124,9 +135,9 @@ class RoadNetwork:
             shapes=LaneShapes.from_polylines(_centre_lines(lanes, successors)),
             edge_ids=np.array([e.getID() for e in edges], dtype=str),
             edge_internal=np.array([e.getFunction() == "internal" for e in edges]),
-            edge_opposite=opposite, edge_length=edge_length,
-            edge_distance=_edge_distances(edge_succ, edge_length),
-            edge_exit=_edge_exits(edge_succ, [e.getFunction() == "internal" for e in edges]),
+            edge_opposite=opposite, edge_length=edge_length, edge_successors=edge_successors,
+            edge_exit=_edge_exits(edge_successors, [e.getFunction() == "internal" for e in edges]),
+            edge_reach=GraphReach(edge_successors, edge_length), lane_reach=GraphReach(successors, lane_length),
             _lane_order=np.argsort(lane_ids), _edge_lookup=edge_index)
 
     def edge_indices(self, edge_ids: list[str] | tuple[str, ...]) -> np.ndarray:
@@ -143,15 +154,27 @@ class RoadNetwork:
             raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(sorted(set(lane_ids[~found])))}")
         return self._lane_order[pos]
 
-    def lanes_downstream(self, lane: int) -> np.ndarray:
-        """Bool [lanes]: the lanes a car on ``lane`` reaches by following successors, without changing lanes,
-        within REACH_HORIZON_M of its start (``lane`` itself included). Computed once per lane."""
-        reach = self._downstream.get(lane)
-        if reach is None:
-            reach = np.zeros(len(self.lane_ids), dtype=bool)
-            reach[list(_distances_from(lane, self.lane_successors, self.lane_length))] = True
-            self._downstream[lane] = reach
-        return reach
+    def require_reach(self, horizon: float) -> None:
+        """Make :meth:`edge_distances` and :meth:`lane_distances` reach exactly ``horizon`` [m] beyond the end of
+        the edge (lane) they start from."""
+        self.edge_reach.require(horizon)
+        self.lane_reach.require(horizon)
+
+    def edge_distances(self, source: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """[m] shortest distance from the start of each edge ``source`` to the start of edge ``target`` along the
+        lane graph (0 for the edge itself); inf where ``target`` starts farther than the reach horizon beyond the end
+        of ``source`` (:meth:`require_reach`), or is not reached at all."""
+        return self.edge_reach.between(source, target)
+
+    def lane_distances(self, source: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """[m] as :meth:`edge_distances` for lanes: the distance a car on lane ``source`` drives, following lane
+        successors without changing lanes, from its start to the start of lane ``target``."""
+        return self.lane_reach.between(source, target)
+
+    def downstream_lanes(self, lane: int) -> np.ndarray:
+        """The lanes (sorted indices) a car on ``lane`` reaches by following successors, without changing lanes,
+        that start within the reach horizon beyond the end of ``lane`` (``lane`` itself included)."""
+        return self.lane_reach.row(lane)[0]
 
     def frenet(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray,
                s_hint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -192,7 +215,7 @@ def _first_direction(line: np.ndarray) -> np.ndarray | None:
     return steps[0] / np.linalg.norm(steps[0]) if len(steps) else None
 
 
-def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:
+def _edge_exits(successors: tuple[tuple[int, ...], ...], internal: list[bool]) -> np.ndarray:
     """For each edge, the first normal edge reached by following successors (itself if normal)."""
     exits = np.arange(len(successors))
     for e in range(len(successors)):
@@ -202,30 +225,3 @@ def _edge_exits(successors: list[set[int]], internal: list[bool]) -> np.ndarray:
             current = min(successors[current])
         exits[e] = current
     return exits
-
-
-def _edge_distances(successors: list[set[int]], length: np.ndarray) -> np.ndarray:
-    """All-pairs shortest start-to-start distances [m] over the edge graph (Dijkstra from every edge)."""
-    dist = np.full((len(successors), len(successors)), np.inf)
-    for source in range(len(successors)):
-        reached = _distances_from(source, successors, length)
-        dist[source, list(reached)] = list(reached.values())
-    return dist
-
-
-def _distances_from(source: int, successors: Sequence[Iterable[int]], length: np.ndarray) -> dict[int, float]:
-    """Shortest start-to-start distances [m] from ``source`` to every node (edge or lane) reached by following
-    ``successors`` within REACH_HORIZON_M (Dijkstra; ``length`` [m] of each node)."""
-    reached: dict[int, float] = {}
-    best, queue = {source: 0.0}, [(0.0, source)]
-    while queue:
-        d, e = heapq.heappop(queue)
-        if d > best[e] or d > REACH_HORIZON_M:
-            continue
-        reached[e] = d
-        for f in successors[e]:
-            nd = d + length[e]
-            if nd < best.get(f, np.inf):
-                best[f] = nd
-                heapq.heappush(queue, (nd, f))
-    return reached

@@ -13,14 +13,15 @@ class RouteTable:
     def __init__(self, network: RoadNetwork):
         self.network = network
         self._ids: dict[tuple[str, ...] | None, int] = {}
-        self._matrix = np.full((0, 1), -1, dtype=int)
+        self._matrix = np.full((16, 1), -1, dtype=int)  # rows beyond len(self._ids) are spare (grown by doubling)
+        self._width = 1  # the longest route so far (at least 1)
 
     def remaining(self, snapshot: WorldSnapshot) -> np.ndarray:
         """[n, k] edge indices of each vehicle's remaining route, -1 padded (all -1 where unknown)."""
         n = len(snapshot)
         routes = snapshot.route_edges or (None,) * n
         ids = np.fromiter((self._row(r) for r in routes), dtype=int, count=n)
-        table = self._matrix[ids]
+        table = self._matrix[ids, : self._width]
         passed = np.arange(table.shape[1])[None, :] < snapshot.route_index[:, None]
         return np.where(passed, -1, table)
 
@@ -30,10 +31,13 @@ class RouteTable:
         row = self._ids.get(key)
         if row is None:
             edges = self.network.edge_indices(key) if key else np.zeros(0, dtype=int)
-            width = max(self._matrix.shape[1], len(edges), 1)
-            matrix = np.full((self._matrix.shape[0] + 1, width), -1, dtype=int)
-            matrix[:-1, : self._matrix.shape[1]] = self._matrix
-            matrix[-1, : len(edges)] = edges
-            self._matrix, row = matrix, matrix.shape[0] - 1
+            row = len(self._ids)
+            rows, width = self._matrix.shape
+            if row == rows or len(edges) > width:  # grown by doubling: adding R routes copies O(R) rows
+                grown = np.full((2 * rows if row == rows else rows, max(width, 2 * len(edges))), -1, dtype=int)
+                grown[:rows, :width] = self._matrix
+                self._matrix = grown
+            self._matrix[row, : len(edges)] = edges
+            self._width = max(self._width, len(edges))
             self._ids[key] = row
         return row

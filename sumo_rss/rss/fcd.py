@@ -1,12 +1,13 @@
 """Offline audits: SUMO FCD files → WorldSnapshot stream → the same auditor as online.
 
-The FCD file is streamed with ``iterparse`` and every ``<timestep>`` is dropped once read, so memory does not
+The FCD file is streamed (:mod:`.fcd_parse`) and every ``<timestep>`` is dropped once read, so memory does not
 grow with the file. Missing attributes are derived: accelerations from speed differences, lane position and
 lateral offset from x, y and the lane shapes, lateral speeds from lateral-position differences on one edge.
 Vehicle sizes come from a vType/route file or SUMO's defaults; collisions from SUMO's collision-output file.
 """
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 import xml.etree.ElementTree as ET
@@ -26,6 +27,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
+from .fcd_parse import FcdParser, FcdStep
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
 
@@ -191,7 +193,7 @@ class FcdReader:
         self.network = network
         self.vehicles = vehicles or VehicleInfo()
         self.ego_ids = set(ego_ids)
-        self._prev: dict[str, tuple[float, int, int, float, float, float]] = {}  # id → as _UNSEEN
+        self._prev = _PreviousStep(np.zeros(0, dtype=str), np.zeros((0, len(_UNSEEN))))
         self._resolution: float | None = None  # [m] of a lateral position difference written with few decimals
         self._speed_decimals: int | None = None  # of the speeds as written (for accelerations worked out from them)
         self._prev_time: float | None = None
@@ -201,29 +203,26 @@ class FcdReader:
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
+        self._lane_index = dict(zip(network.lane_ids.tolist(), range(len(network.lane_ids))))
+        self._route_of: dict[str, tuple[str, ...]] = {}  # of each vehicle seen (VehicleInfo.route_of, () for none)
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
             raise FcdError(f"{self.path}: FCD file not found")
-        time = None
+        parser = None
         try:
             with open_output(self.path) as source:
-                context = ET.iterparse(source, events=("start", "end"))
-                _, root = next(context)
-                if root.tag != "fcd-export":
-                    raise FcdError(f"{self.path}: not an FCD file (root element <{root.tag}>, expected "
-                                   "<fcd-export>)")
+                parser = FcdParser(source)
+                root = parser.read_root()
+                if root != "fcd-export":
+                    raise FcdError(f"{self.path}: not an FCD file (root element <{root}>, expected <fcd-export>)")
                 last = None  # the last complete time step [s]
                 try:
-                    for event, elem in context:
-                        if event == "start" and elem.tag == "timestep":
-                            time = elem.get("time")
-                        elif event == "end" and elem.tag == "timestep":
-                            last = self._time_of(elem)
-                            snapshot = self._snapshot(elem, last)
-                            self.bytes_read = bytes_consumed(source)
-                            yield snapshot
-                            root.clear()
+                    for step in parser:
+                        last = self._time_of(step)
+                        snapshot = self._snapshot(step, last)
+                        self.bytes_read = bytes_consumed(source)
+                        yield snapshot
                 except MALFORMED as exc:
                     if last is None or not ends_cut(exc, source):
                         raise
@@ -231,6 +230,7 @@ class FcdReader:
                                   "</fcd-export>, as when SUMO is killed while writing it): read the time steps up "
                                   f"to {last:g} s", stacklevel=2)
         except MALFORMED as exc:
+            time = parser.started_time if parser is not None else None
             where = f"after time step {time} s" if time is not None else "before the first time step"
             raise FcdError(f"{self.path}: malformed or truncated FCD {where} ({exc})") from exc
 
@@ -246,22 +246,37 @@ class FcdReader:
                           f"steps were {self._step:g} s apart (steps missing, or another output period): RSS is "
                           "judged at the steps written only", stacklevel=3)
 
-    def _against_lane(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray,
-                      length: np.ndarray) -> np.ndarray:
-        """Whether each car (front bumper at x, y [m]) drives against its lane (:func:`situations.against_lane`)."""
+    def _projections(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, heading: np.ndarray, length: np.ndarray,
+                     fronts: bool, centres: bool) -> tuple[tuple | None, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """In one projection onto the cars' lanes: the front bumpers (x, y [m]) if ``fronts`` (s, d, heading of
+        the lane, as ``RoadNetwork.frenet``), and if ``centres`` those of the cars on an edge with an opposite
+        direction (their rows, s along the lane [m] and its heading; for :func:`situations.against_lane`)."""
+        k = np.flatnonzero(self.network.edge_opposite[self.network.lane_edge[lane]] >= 0) if centres else \
+            np.zeros(0, dtype=int)
+        cx, cy = x[k] - 0.5 * length[k] * np.cos(heading[k]), y[k] - 0.5 * length[k] * np.sin(heading[k])
+        n = len(lane) if fronts else 0
+        if not n and not k.size:  # nothing to project (also a step without vehicles)
+            empty = np.zeros(0)
+            return ((empty, empty, empty) if fronts else None), (k, empty, empty)
+        s, d, lane_heading = self.network.frenet(np.concatenate([lane[:n], lane[k]]), np.concatenate([x[:n], cx]),
+                                                 np.concatenate([y[:n], cy]))
+        return ((s[:n], d[:n], lane_heading[:n]) if fronts else None), (k, s[n:], lane_heading[n:])
+
+    def _against_lane(self, lane: np.ndarray, heading: np.ndarray, length: np.ndarray,
+                      centres: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+        """Whether each car drives against its lane (:func:`situations.against_lane`), from ``centres``
+        (:meth:`_projections`)."""
         against = np.zeros(len(lane), dtype=bool)
-        k = np.flatnonzero(self.network.edge_opposite[self.network.lane_edge[lane]] >= 0)
+        k, s, lane_heading = centres
         if k.size:
-            cx, cy = x[k] - 0.5 * length[k] * np.cos(heading[k]), y[k] - 0.5 * length[k] * np.sin(heading[k])
-            s, _, lane_heading = self.network.frenet(lane[k], cx, cy)
             against[k] = against_lane(self.network, lane[k], s, lane_heading, heading[k], length[k])
         return against
 
-    def _lateral_resolution(self, rows: list[dict[str, str]], from_pos_lat: bool) -> float:
+    def _lateral_resolution(self, xs: Sequence[str | None], from_pos_lat: bool) -> float:
         """[m] the largest error of a lateral movement measured from positions as the file writes them (0 for
         FINE_DECIMALS or more; SUMO's --precision applies to x, y and posLat alike); warns once when it is coarse.
         posLat is rounded itself, an offset worked out from x and y by up to √2 of the rounding."""
-        decimals = max(_decimals(r.get("x", "")) for r in rows[:100])
+        decimals = max(_decimals(x or "") for x in xs[:100])
         if decimals >= FINE_DECIMALS:
             return 0.0
         resolution = 10.0 ** -decimals * (1.0 if from_pos_lat else math.sqrt(2.0))
@@ -283,9 +298,9 @@ class FcdReader:
                           "--lateral-resolution); at such steps the lateral speed is taken as 0, as SUMO reports it",
                           stacklevel=3)
 
-    def _time_of(self, step: ET.Element) -> float:
+    def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
-        value = step.get("time")
+        value = step.time
         try:
             time = float(value) if value is not None else math.nan
         except ValueError:
@@ -295,67 +310,72 @@ class FcdReader:
             raise FcdError(f"{self.path}: <timestep> ({after}): time: expected a number of seconds, got {value!r}")
         return time
 
-    def _snapshot(self, step: ET.Element, time: float) -> WorldSnapshot:
+    def _snapshot(self, step: FcdStep, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
-        rows = [v.attrib for v in step.iter("vehicle")]
         where = f"{self.path}, time step {time} s"
-        if not self._warned_persons and (step.find("person") is not None or step.find("container") is not None):
+        if not self._warned_persons and step.unaudited:
             self._warned_persons = True
             warnings.warn(f"{where}: persons and containers are not audited (the RSS model covers vehicles; a "
                           "collision with one is listed with blamed 'none')", stacklevel=3)
-        lacking = next(((r.get("id", "?"), name) for r in rows for name in ("id", "lane") if name not in r), None)
-        if lacking is not None:
-            raise FcdError(f"{where}: vehicle {lacking[0]!r} lacks the attribute {lacking[1]!r} ({NEEDED_ATTRIBUTES})")
-        ids = np.array([r["id"] for r in rows], dtype=str)
-        lane_id = np.array([r["lane"] for r in rows], dtype=str)
-        if len(set(ids.tolist())) < len(ids):
-            twice = next(v for v, count in Counter(ids.tolist()).items() if count > 1)
+        if len(step) and not (step.has("id") and step.has("lane")):
+            vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
+            raise FcdError(f"{where}: vehicle {vid!r} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
+        id_column = step.column("id")
+        ids = np.array(id_column, dtype=str)
+        lane_id = np.array(step.column("lane"), dtype=str)
+        if len(set(id_column)) < len(ids):
+            twice = next(v for v, count in Counter(id_column).items() if count > 1)
             raise FcdError(f"{where}: vehicle {twice!r} is listed more than once")
-        x, y, angle, speed = (_numbers(rows, name, where) for name in ("x", "y", "angle", "speed"))
+        x, y, angle, speed = (_numbers(step, name, where) for name in ("x", "y", "angle", "speed"))
         if (speed < 0.0).any():  # the audit's speeds are along the road; SUMO writes none below 0
             bad = int(np.argmax(speed < 0.0))
-            raise FcdError(f"{where}: vehicle {rows[bad].get('id')!r}: speed: expected a number >= 0 (m/s), got "
-                           f"{rows[bad]['speed']!r}")
-        try:
-            lane = self.network.lane_indices(lane_id)
-        except UnknownLaneError as exc:
-            raise FcdError(f"{where}: {exc}; is --net the network of this run?") from exc
+            raise FcdError(f"{where}: vehicle {id_column[bad]!r}: speed: expected a number >= 0 (m/s), got "
+                           f"{step.column('speed')[bad]!r}")
+        lane = np.fromiter(map(self._lane_index.get, step.column("lane"), itertools.repeat(-1)), int, len(step))
+        if np.any(lane < 0):
+            try:
+                self.network.lane_indices(lane_id)  # names the lanes not in the network
+            except UnknownLaneError as exc:
+                raise FcdError(f"{where}: {exc}; is --net the network of this run?") from exc
         # Without 'type' in the FCD, the route files' vehicles and flows tell it.
-        vtype = np.array([r.get("type") or self.vehicles.type_of(r["id"]) or "DEFAULT_VEHTYPE" for r in rows],
-                         dtype=str)
-        unknown = set(vtype.tolist()) - self.vehicles.sizes.keys() - self._unknown_types
+        types = step.column("type")
+        if None in types or "" in types:
+            types = tuple(t or self.vehicles.type_of(v) or "DEFAULT_VEHTYPE" for t, v in zip(types, id_column))
+        vtype = np.array(types, dtype=str)
+        unknown = set(types) - self.vehicles.sizes.keys() - self._unknown_types
         if unknown:
             self._unknown_types |= unknown
             warnings.warn(f"{self.path}: vType {', '.join(sorted(unknown))} is not defined (give its route or vType "
                           f"file); audited at SUMO's passenger size {SUMO_DEFAULT_SIZE[0]:g} m x "
                           f"{SUMO_DEFAULT_SIZE[1]:g} m", stacklevel=2)
-        sizes = [self.vehicles.sizes.get(t, SUMO_DEFAULT_SIZE) for t in vtype]
-        length = np.array([s[0] for s in sizes])
-        width = np.array([s[1] for s in sizes])
+        sizes = np.array(list(map(self.vehicles.sizes.get, types, itertools.repeat(SUMO_DEFAULT_SIZE))),
+                         dtype=float).reshape(len(types), 2)
+        length, width = sizes[:, 0].copy(), sizes[:, 1].copy()
         heading = compass_deg_to_heading(angle)
 
         def optional(name: str) -> np.ndarray | None:
-            return _numbers(rows, name, where) if rows and all(name in r for r in rows) else None
+            return _numbers(step, name, where) if step.has(name) else None
 
         lane_pos, lat_pos = optional("pos"), optional("posLat")
-        if self._resolution is None and rows and not all("speedLat" in r for r in rows):
-            self._resolution = self._lateral_resolution(rows, lat_pos is not None)
-        if lane_pos is None or lat_pos is None:  # SUMO's pos and posLat are those of the front-bumper centre
-            s_f, d_f, _ = self.network.frenet(lane, x, y)
+        if self._resolution is None and len(step) and not step.has("speedLat"):
+            self._resolution = self._lateral_resolution(step.column("x"), lat_pos is not None)
+        accel, lat_speed = optional("acceleration"), optional("speedLat")
+        fronts, centres = self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
+                                            lat_speed is None)
+        if fronts is not None:  # SUMO's pos and posLat are those of the front-bumper centre
+            s_f, d_f, _ = fronts
             # SUMO measures pos along the lane's nominal length, which may differ from its shape's length.
             s_f = s_f * self.network.lane_length[lane] / self.network.shapes.cumulative[lane, -1]
             lane_pos = s_f if lane_pos is None else lane_pos
             lat_pos = d_f if lat_pos is None else lat_pos
         edge = self.network.lane_edge[lane]
         edge_lat = self.network.lane_offset[lane] + lat_pos
-        accel, lat_speed = optional("acceleration"), optional("speedLat")
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
-        seen = np.array([v in self._prev for v in ids], dtype=bool)
-        prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = np.array(
-            [self._prev.get(v, _UNSEEN) for v in ids], dtype=float).reshape(len(ids), len(_UNSEEN)).T
+        seen, prev = self._prev.of(ids)
+        prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)
         lat_moved = np.where(same_edge, edge_lat - prev_edge_lat, 0.0)  # [m]
         # A car that moves sideways faster than any car can, or from one lane's centre line to another's, changed
@@ -369,8 +389,8 @@ class FcdReader:
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
             # Two speeds each rounded to the file's decimals: the difference is off by up to 10^-N m/s.
-            if self._speed_decimals is None and rows:
-                self._speed_decimals = max(_decimals(r["speed"]) for r in rows[:100])
+            if self._speed_decimals is None and len(step):
+                self._speed_decimals = max(_decimals(v) for v in step.column("speed")[:100])
             decimals = FINE_DECIMALS if self._speed_decimals is None else self._speed_decimals
             accel_resolution = 10.0 ** -decimals / dt if dt and decimals < FINE_DECIMALS else 0.0
         if lat_speed is None:  # a lane changed in one step has no lateral speed: SUMO writes speedLat 0 for it
@@ -380,36 +400,48 @@ class FcdReader:
                 np.zeros(len(ids))
             # SUMO's speedLat is the car's own (+ = left of its travel); a car overtaking through the oncoming lane
             # has its posLat in that lane's frame, so its movement there is the other way round.
-            lat_speed = np.where(self._against_lane(lane, x, y, heading, length), -across, across)
+            lat_speed = np.where(self._against_lane(lane, heading, length, centres), -across, across)
         else:
             across = np.zeros(len(ids))  # not needed: SUMO wrote the lateral speeds
-        self._prev = {v: (s, int(e), int(ln), lp, lt, ls)
-                      for v, s, e, ln, lp, lt, ls in zip(ids, speed, edge, lane, lat_pos, edge_lat, across)}
+        self._prev = _PreviousStep(ids, np.column_stack([speed, edge, lane, lat_pos, edge_lat, across]))
         self._prev_time = time
-        is_ego = np.array([v in self.ego_ids or t == EGO_TYPE for v, t in zip(ids, vtype)], dtype=bool)
-        routes = tuple(self.vehicles.route_of(v) or () for v in ids)
+        is_ego = np.isin(ids, sorted(self.ego_ids)) | (vtype == EGO_TYPE)
+        routes = tuple(map(self._route_of.get, id_column))
+        if None in routes:
+            self._route_of.update((v, self.vehicles.route_of(v) or ()) for v in id_column if v not in self._route_of)
+            routes = tuple(map(self._route_of.__getitem__, id_column))
         return WorldSnapshot(
             time=time, ids=ids, x=x, y=y, heading=heading, speed=speed, accel=accel, lat_speed=lat_speed,
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
             vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
-            signals=_numbers(rows, "signals", where, integer=True, default="0"),
+            signals=_numbers(step, "signals", where, integer=True, default="0"),
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
             accel_resolution=accel_resolution)
 
 
+@dataclass(frozen=True)
+class AuditProgress:
+    """How far an offline audit has got, after a time step."""
+
+    bytes_read: int  # of the FCD file, on disk (of its size: a gzipped file's compressed bytes)
+    time: float  # [s] of the step
+    steps: int  # audited so far
+    pair_steps: int  # pairs evaluated so far (road and junction situations, each step)
+
+
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
-              run_id: str = "", signal_rule: bool = True, on_progress: Callable[[int], None] | None = None,
+              run_id: str = "", signal_rule: bool = True, on_progress: Callable[[AuditProgress], None] | None = None,
               stop: Callable[[], bool] | None = None, record_states: bool = False,
               on_snapshot: Callable[[WorldSnapshot], None] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
-    defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
-    how much of the FCD file (its size on disk) has been read. ``stop()`` is asked after every time step: True ends
-    the audit there, as if the file ended there (with a warning that names the step). ``record_states``: as
-    :class:`Auditor`'s. ``on_snapshot(snapshot)``: after every audited time step (e.g. a viewer's recorder)."""
+    defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(AuditProgress)`` is called after
+    every time step. ``stop()`` is asked after every time step: True ends the audit there, as if the file ended
+    there (with a warning that names the step). ``record_states``: as :class:`Auditor`'s. ``on_snapshot(snapshot)``:
+    after every audited time step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -423,8 +455,6 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
     for steps, snapshot in enumerate(reader, start=1):
-        if on_progress is not None:
-            on_progress(reader.bytes_read)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent:
             absent.difference_update(snapshot.ids.tolist())
@@ -433,6 +463,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         else:
             found = overlap_contacts(snapshot, auditor.observe(snapshot), network)
             auditor.record_collisions(contacts.step(found))
+        if on_progress is not None:
+            on_progress(AuditProgress(reader.bytes_read, snapshot.time, steps, auditor.pair_steps))
         if on_snapshot is not None:
             on_snapshot(snapshot)
         if stop is not None and stop():
@@ -478,22 +510,42 @@ def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations, network: RoadNet
     return overlap
 
 
-def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool = False,
-             default: str | None = None) -> np.ndarray:
+def _numbers(step: FcdStep, name: str, where: str, *, integer: bool = False, default: str | None = None
+             ) -> np.ndarray:
     """Attribute ``name`` of every vehicle of a time step as finite floats (or integers), ``default`` where a
     vehicle lacks it (None: required); FcdError naming the vehicle and the value."""
     kind = int if integer else float
+    column = step.column(name)
     try:
-        values = np.array([kind(r.get(name, default)) for r in rows], dtype=kind)  # type: ignore[arg-type]
+        if default is not None and not step.has(name):
+            column = tuple(default if v is None else v for v in column)
+        values = np.fromiter(map(int, column), int, len(column)) if integer else np.array(column, dtype=float)
         if integer or np.isfinite(values).all():
             return values
     except (TypeError, ValueError):
         pass
+    rows = step.rows()
     bad = next(r for r in rows if not _is_number(r.get(name, default), kind))
     if bad.get(name, default) is None:
         raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
     raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r}: {name}: expected "
                    f"{'an integer' if integer else 'a finite number'}, got {bad[name]!r}")
+
+
+class _PreviousStep:
+    """What the reader remembers of the cars of the step before, as ``_UNSEEN`` lists it (rows sorted by id)."""
+
+    def __init__(self, ids: np.ndarray, values: np.ndarray):
+        order = np.argsort(ids)
+        self.ids, self.values = ids[order], values[order]  # [n], [n, len(_UNSEEN)]
+
+    def of(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(whether each car was seen the step before, its values then or ``_UNSEEN``)."""
+        if not len(self.ids):
+            return np.zeros(len(ids), dtype=bool), np.tile(np.array(_UNSEEN, dtype=float), (len(ids), 1))
+        pos = np.minimum(np.searchsorted(self.ids, ids), len(self.ids) - 1)
+        seen = self.ids[pos] == ids
+        return seen, np.where(seen[:, None], self.values[pos], np.array(_UNSEEN, dtype=float))
 
 
 def _decimals(text: str) -> int:

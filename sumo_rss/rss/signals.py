@@ -16,9 +16,10 @@ from enum import Enum
 from pathlib import Path
 
 import numpy as np
-import sumolib
 
 from ..road.junctions import JunctionModel
+from ..road.model_cache import cached
+from ..road.net_file import signal_programs
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from ..sumo_xml import MALFORMED, output_elements
@@ -147,8 +148,7 @@ class SignalStates:
         self.known_until: float | None = None  # [s] the last saved state's time where the file breaks off
         self._saved: dict[str, tuple[list[float], list[str]]] = {}
         self._programs: dict[str, tuple[float, list[tuple[float, str]]]] = {}
-        net = sumolib.net.readNet(str(net_file), withPrograms=True)
-        signals = {tls.getID(): tls for tls in net.getTrafficLights()}
+        signals = cached(Path(net_file), "signals", lambda: signal_programs(net_file), keep=True)
         if saved_states is not None:
             self._read_saved(saved_states)
             foreign = sorted(set(self._saved) - set(signals))
@@ -159,16 +159,14 @@ class SignalStates:
             if missing:
                 warnings.warn(f"{saved_states}: no states of signal(s) {', '.join(missing)}; their network programs "
                               "are used instead", stacklevel=2)
-        for tl_id, tls in signals.items():
+        for tl_id, programs in signals.items():
             if tl_id in self._saved:
                 continue
-            programs = list(tls.getPrograms().values())
-            if len(programs) != 1 or programs[0].getType() != "static":
+            if len(programs) != 1 or programs[0].type != "static":
                 warnings.warn(f"{net_file}: signal {tl_id} has no single fixed-time program; its links are "
                               "audited as equal priority (give --tls-states for the real states)", stacklevel=2)
                 continue
-            phases = [(float(p.duration), p.state) for p in programs[0].getPhases()]
-            self._programs[tl_id] = (float(getattr(programs[0], '_offset', 0) or 0.0), phases)
+            self._programs[tl_id] = (programs[0].offset, list(programs[0].phases))
 
     def _read_saved(self, path: Path) -> None:
         cut: list[int] = []

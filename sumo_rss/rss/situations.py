@@ -255,6 +255,13 @@ def _innermost_lane(network: RoadNetwork) -> np.ndarray:
     return innermost
 
 
+def candidate_radius(snapshot: WorldSnapshot, frame: VehicleFrame) -> float:
+    """[m] the centre distance no unsafe pair exceeds at this step: twice the largest worst-case reach, the largest
+    gap and twice the largest half size (length plus width)."""
+    size = 0.5 * (snapshot.length + snapshot.width)
+    return 2.0 * float(frame.reach.max()) + float(frame.params.min_lon_gap.max()) + 2.0 * float(size.max())
+
+
 def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (i, j), i < j, that could be unsafe: centre distance within both cars' worst-case reach plus
     λ and their sizes. Anything farther is longitudinally safe whatever the situation."""
@@ -263,7 +270,7 @@ def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.nd
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
     size = 0.5 * (snapshot.length + snapshot.width)
     gap = frame.params.min_lon_gap
-    radius = 2.0 * float(frame.reach.max()) + float(gap.max()) + 2.0 * float(size.max())
+    radius = candidate_radius(snapshot, frame)
     tree = cKDTree(np.column_stack([frame.cx, frame.cy]))
     pairs = tree.query_pairs(radius, output_type="ndarray")
     if pairs.size == 0:
@@ -291,8 +298,7 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     """
     ei, ej = frame.edge[i], frame.edge[j]
     same_edge = ei == ej
-    dist_ij = network.edge_distance[ei, ej]
-    dist_ji = network.edge_distance[ej, ei]
+    dist_ij, dist_ji = network.edge_distances(np.concatenate([ei, ej]), np.concatenate([ej, ei])).reshape(2, -1)
     j_ahead = ~same_edge & np.isfinite(dist_ij) & (dist_ij <= dist_ji)
     i_ahead = ~same_edge & np.isfinite(dist_ji) & (dist_ji < dist_ij)
     # Chained edges count along the rear car's remaining route (or any route where it is unknown), and into a
@@ -330,8 +336,7 @@ def _along_edge(frame: VehicleFrame, rows: np.ndarray, network: RoadNetwork) -> 
 
 def _leads_to(network: RoadNetwork, lanes: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Whether a car on each of ``lanes`` reaches the lane ``targets`` without changing lanes."""
-    pairs, inverse = _distinct_lane_pairs(network, lanes, targets)
-    return np.array([network.lanes_downstream(lane)[target] for lane, target in pairs], dtype=bool)[inverse]
+    return np.isfinite(network.lane_distances(lanes, targets))
 
 
 def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarray) -> np.ndarray:
@@ -341,8 +346,9 @@ def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarra
     pairs, inverse = _distinct_lane_pairs(network, lanes, ref_lanes)
     out = np.full(len(pairs), np.nan)
     for k, (lane, ref) in enumerate(pairs):
-        on_edge = network.lanes_downstream(lane) & (network.lane_edge == network.lane_edge[ref])
-        if on_edge.any():
+        downstream = network.downstream_lanes(lane)
+        on_edge = downstream[network.lane_edge[downstream] == network.lane_edge[ref]]
+        if on_edge.size:
             offsets = network.lane_offset[on_edge] - network.lane_offset[ref]
             out[k] = offsets[np.argmin(np.abs(offsets))]
     return out[inverse]
@@ -367,7 +373,7 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
     0.5° kink at highway speed).
     """
     lane_o, lane_r = frame.lane[other], frame.lane[ref]
-    behind = network.edge_distance[frame.edge[other], frame.edge[ref]]  # start of the car's edge to the ref's
+    behind = network.edge_distances(frame.edge[other], frame.edge[ref])  # start of the car's edge to the ref's
     # Along the lanes (SUMO's lengths), in the reference lane's shape metres.
     s = (_along_edge(frame, other, network) - behind) * _shape_length(network, lane_r) / network.lane_length[lane_r]
     # Across: the lane the car's lane leads on to (through a turn, too); where it leads to no lane of the
@@ -385,6 +391,8 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
 def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork) -> PairSituations:
     """All relevant pairs of ``snapshot`` with gaps, safe distances and verdicts (rss.md §2-§3)."""
     i, j = candidate_pairs(snapshot, frame)
+    if i.size:  # a pair farther apart along the lanes than any candidate is apart is safe: no need to look beyond
+        network.require_reach(candidate_radius(snapshot, frame))
     kind, ref, other = classify(frame, i, j, network)
     relevant = kind >= 0
     kind, ref, other = kind[relevant], ref[relevant], other[relevant]
