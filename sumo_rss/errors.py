@@ -3,6 +3,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+SHOWN_CHARACTERS = 60  # a value echoed in a message is cut to about this many characters
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` for a message, cut where it is long (a 5000-digit attribute is not echoed in full): its
+    first characters, then how long it was."""
+    text = repr(value)
+    if len(text) <= SHOWN_CHARACTERS:
+        return text
+    return f"{text[:SHOWN_CHARACTERS - 20]}... ({len(text)} characters)"
+
 
 class SumoRssError(Exception):
     """Base of the errors caused by user input; the CLI prints them without a traceback."""
@@ -23,9 +34,14 @@ class ScenarioError(SumoRssError):
         where = f"{self.file}: {key}" if key else self.file
         text = f"{where}: {expected}"
         if has_got:
-            text += f", got {got!r}"
+            text += f", got {shown(got)}"
         super().__init__(text)
 
 
 class SessionError(SumoRssError):
     """A simulation session cannot be started or used as asked."""
+
+
+class OutputError(SumoRssError):
+    """A result file or folder cannot be written (not a folder, not writable, disk full, file too large): the
+    message names it and what is expected."""

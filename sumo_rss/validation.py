@@ -34,6 +34,8 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
         raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
     except UnicodeDecodeError as exc:
         raise ScenarioError(path, "", "not a UTF-8 text file", has_got=False) from exc
+    except ValueError as exc:  # an integer of more than 4300 digits, which Python refuses to convert
+        raise ScenarioError(path, "", f"not a TOML file this tool reads ({exc})", has_got=False) from exc
 
 
 class TableReader:

@@ -351,7 +351,7 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
     additional.write_text(f'<additional><timedEvent type="SaveTLSStates" dest="{states_file}"/></additional>\n')
     data = tomllib.loads((SCENARIOS / "intersection_tls.toml").read_text(encoding="utf-8"))
     data["network"] = "intersection_tls"
-    data["sumo"] = {**data.get("sumo", {}), "extra_args": ["--additional-files", str(additional)]}
+    data["sumo"] = {**data.get("sumo", {}), "additional_files": [additional.name]}  # relative to the scenario file
     scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
     proc = run_cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr

@@ -9,13 +9,14 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import atomic_path, write_text
+from ..files import atomic_path, make_folder, write_text
+from .inputs import check_table
 from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import ego_table, read_batch_csv, responsibility_table, run_label, violation_table
 
 
 FIGURES = ("ego_responsibility", "responsibility", "violations", "pair_timeline", "ego_speed")
-SUMMARY_COLUMNS_USED = ("run_id", "scenario", "variant", "seed", "status")  # of batch_summary.csv
+REPORT_FILES = ("report.html",)  # written into the batch folder (and the figures into its report/ folder)
 
 
 def write_report(batch_dir: Path) -> Path:
@@ -25,15 +26,11 @@ def write_report(batch_dir: Path) -> Path:
     if not path.is_file():
         raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
     summary = _read(batch_dir, "batch_summary")
-    missing = [c for c in SUMMARY_COLUMNS_USED if c not in summary.columns]
-    if missing:
-        raise SumoRssError(f"{path}: expected the columns {', '.join(SUMMARY_COLUMNS_USED)} (as 'sumo-rss batch' "
-                           f"writes them), missing {', '.join(missing)}")
     if summary.empty:
         raise SumoRssError(f"{path}: lists no runs")
     episodes, violations, states = (_read(batch_dir, name) for name in ("episodes", "violations", "pair_states"))
     figures_dir = batch_dir / "report"
-    figures_dir.mkdir(exist_ok=True)
+    make_folder(figures_dir)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
     responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
     ego = ego_table(episodes, summary)
@@ -61,12 +58,15 @@ def write_report(batch_dir: Path) -> Path:
 
 
 def _read(batch_dir: Path, name: str) -> pd.DataFrame:
-    """A batch CSV (:func:`read_batch_csv`); SumoRssError naming it where it is not one."""
+    """A batch CSV (:func:`read_batch_csv`), checked (:func:`~sumo_rss.report.inputs.check_table`; an absent one is
+    an empty table); SumoRssError naming it where it is not one."""
+    path = batch_dir / f"{name}.csv"
     try:
-        return read_batch_csv(batch_dir, name)
+        table = read_batch_csv(batch_dir, name)
     except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{batch_dir / (name + '.csv')}: not a CSV file as 'sumo-rss batch' writes it ({exc})") \
+        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss batch' writes it ({' '.join(str(exc).split())})") \
             from None
+    return table if table.empty and not path.is_file() else check_table(table, path, name)
 
 
 def longest_traced_episode(episodes: pd.DataFrame, states: pd.DataFrame) -> pd.Series | None:
@@ -89,11 +89,21 @@ def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame
     for (scenario, variant), group in ok.groupby(["scenario", "variant"], sort=True):
         for run in group.sort_values("seed").itertuples():
             path = batch_dir / run.run_id / "ego_trace.csv"
-            trace = pd.read_csv(path) if path.is_file() else None
+            trace = _read_trace(path) if path.is_file() else None
             if trace is not None and not trace.empty:
                 traces[f"{scenario}{' [' + variant + ']' if variant else ''} seed {run.seed}"] = trace
                 break
     return traces
+
+
+def _read_trace(path: Path) -> pd.DataFrame:
+    """A run's ego_trace.csv, checked as the batch CSVs are."""
+    try:
+        trace = pd.read_csv(path, keep_default_na=False)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss run' writes it ({' '.join(str(exc).split())})") \
+            from None
+    return check_table(trace, path, "ego_trace", ["time_s", "speed_ms"])
 
 
 def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibility: pd.DataFrame,

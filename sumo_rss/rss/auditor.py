@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..files import write_csv, write_json
+from ..files import csv_writer, json_text, make_folder, write_file_set
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
@@ -90,6 +90,7 @@ class ParamResolver:
 
 
 PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
+AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", PARAMS_FILE)  # AuditResult's
 
 
 @dataclass
@@ -100,17 +101,22 @@ class AuditResult:
     params: dict[str, dict[str, float]]
     pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
 
+    def file_names(self) -> tuple[str, ...]:
+        """The files :meth:`to_csv` writes."""
+        return tuple(name for name in AUDIT_FILES if name != "pair_states.csv" or self.pair_states is not None)
+
     def to_csv(self, directory: str | Path) -> None:
         """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced) and the parameters
-        they were judged with, rss_params.json, atomically."""
+        they were judged with, rss_params.json, as a set (:func:`~sumo_rss.files.write_file_set`: all of them or,
+        when one cannot be written, none)."""
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        frames = [("episodes", self.episodes), ("violations", self.violations), ("collisions", self.collisions)]
-        if self.pair_states is not None:
-            frames.append(("pair_states", self.pair_states))
-        for name, frame in frames:
-            write_csv(frame, directory / f"{name}.csv")
-        write_json(directory / PARAMS_FILE, self.params)
+        make_folder(directory)
+        frames = {"episodes.csv": self.episodes, "violations.csv": self.violations, "collisions.csv": self.collisions,
+                  "pair_states.csv": self.pair_states}
+        writers = {directory / name: csv_writer(frames[name]) for name in self.file_names() if name in frames}
+        params = json_text(self.params)
+        writers[directory / PARAMS_FILE] = lambda path: path.write_text(params, encoding="utf-8")
+        write_file_set(writers)
 
 
 def collision_blame(records: list[dict]) -> tuple[str, str]:

@@ -80,11 +80,15 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
 
     files = [] if paths is None else [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     documents = []
-    for path in files:
+    for path in files:  # gzipped (*.rou.xml.gz) as SUMO reads them
         try:
-            documents.append(ET.parse(path).getroot())
-        except ET.ParseError as exc:
+            with open_output(path) as source:
+                documents.append(ET.parse(source).getroot())
+        except MALFORMED as exc:
             raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+        if documents[-1].tag not in ("routes", "additional"):
+            raise FcdError(f"{path}: not a SUMO route/vType file (root element <{documents[-1].tag}>, expected "
+                           "<routes> or <additional>)")
     known = vtype_attribute_names() | {"id"}
     for path, document in zip(files, documents):
         for vtype in document.iter("vType"):

@@ -15,7 +15,8 @@ from pathlib import Path
 import libsumo
 
 from ..errors import SessionError
-from ..sumo_home import sumo_errors
+from ..files import output_error
+from ..sumo_home import captured_stderr, error_lines, sumo_errors
 from . import session
 
 
@@ -43,13 +44,17 @@ def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: st
         root = ET.Element("additional")
         for document in documents:
             root.extend(_vtype_elements(document))
-        ET.ElementTree(root).write(additional, encoding="utf-8")
+        try:
+            ET.ElementTree(root).write(additional, encoding="utf-8")
+        except OSError as exc:  # the temporary folder's disk is full
+            raise output_error(additional, exc) from None
         args = ["--net-file", str(net_file), "--additional-files", str(additional), "--no-warnings", "true"]
         try:
-            libsumo.start(["sumo", *args])
+            with captured_stderr() as printed:
+                libsumo.start(["sumo", *args])
         except libsumo.TraCIException as exc:
-            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({sumo_errors(args) or exc})"
-                             ) from exc
+            reason = error_lines(printed) or sumo_errors(args) or str(exc)
+            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({reason})") from exc
         try:
             vt = libsumo.vehicletype
             return {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))

@@ -1,0 +1,245 @@
+"""Damaged inputs, table-driven: each case writes one bad input (a scenario and what it names, a network, an FCD
+plain or gzipped, a vType file, a collision file, a signal-state file, a batch folder, a report's CSVs, an output
+folder) and runs the command line on it in this process (`main`, the same code path as `sumo-rss`). Every case
+must end with exit code 2 and one line `sumo-rss: error: ...` that names the file and the field, with no traceback
+and nothing written to the output folder (docs/outputs.md, "Bad input, full disks and interruptions")."""
+from __future__ import annotations
+
+import gzip
+import signal
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from conftest import NETWORKS, VALID_SCENARIO
+from sumo_rss.cli import main
+
+HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
+TLS_NET = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
+# A valid FCD on the highway: two cars in lane hw0_1, 20 m apart, at 3 m/s (SUMO's default attributes and posLat).
+FCD_STEPS = [(0.0, 20.0, 40.0), (0.1, 20.3, 40.3), (0.2, 20.6, 40.6)]
+ROUTES = ('<routes>\n    <vType id="car" length="4.5" width="1.8" tau="1.0" decel="4.5"/>\n'
+          '    <route id="r" edges="hw0 hw1 hw2"/>\n'
+          '    <vehicle id="a" type="car" route="r" depart="0"/>\n    <vehicle id="b" type="car" route="r" depart="0"/>\n'
+          "</routes>\n")
+TLS_STATES = ('<tlsStates>\n    <tlsState time="0.00" id="C" programID="fixed" phase="0" state="GGgrrrGGgrrr"/>\n'
+              '    <tlsState time="30.00" id="C" programID="fixed" phase="1" state="yygrrryygrrr"/>\n</tlsStates>\n')
+
+
+def fcd_text(**changed: str) -> str:
+    """The valid FCD, with the attributes ``changed`` of car a at 0.1 s replaced (e.g. ``x="1e300"``)."""
+    steps = []
+    for time, xa, xb in FCD_STEPS:
+        cars = []
+        for vid, x in (("a", xa), ("b", xb)):
+            attributes = {"id": vid, "x": f"{x:.2f}", "y": "-5.25", "angle": "90.00", "type": "car", "speed": "3.00",
+                          "pos": f"{x:.2f}", "lane": "hw0_1", "posLat": "0.00"}
+            if vid == "a" and time == 0.1:
+                attributes.update(changed)
+            cars.append("        <vehicle " + " ".join(f'{k}="{v}"' for k, v in attributes.items()) + "/>")
+        steps.append(f'    <timestep time="{time:.2f}">\n' + "\n".join(cars) + "\n    </timestep>")
+    return "<fcd-export>\n" + "\n".join(steps) + "\n</fcd-export>\n"
+
+
+@dataclass(frozen=True)
+class Case:
+    """A damaged input: ``build(folder)`` writes it into ``folder`` and returns the command line; the one-line error
+    must contain every text of ``named`` (the file, the element or column, what is expected)."""
+
+    build: Callable[[Path], list[str]]
+    named: tuple[str, ...]
+
+
+def write(folder: Path, name: str, text: str | bytes) -> Path:
+    path = folder / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(text, bytes):
+        path.write_bytes(text)
+    else:
+        path.write_text(text, encoding="utf-8")
+    return path
+
+
+def damaged_gzip(text: str) -> bytes:
+    """``text`` gzipped, with bytes in the middle of its deflate stream overwritten (its header is whole)."""
+    data = bytearray(gzip.compress(text.encode(), mtime=0))
+    middle = len(data) // 2
+    data[middle:middle + 8] = b"\xff" * 8
+    return bytes(data)
+
+
+def audit(fcd: str | bytes = fcd_text(), *, name: str = "f.xml", net: Path | None = None,
+          routes: str | bytes | None = ROUTES, routes_name: str = "r.rou.xml", extra: tuple[str, ...] = ()
+          ) -> Callable[[Path], list[str]]:
+    """An audit of ``fcd`` (text, or bytes for a gzipped or damaged one) on the highway net (``net``: another
+    network file, written by the case), with the vType file ``routes``."""
+    def build(folder: Path) -> list[str]:
+        argv = ["audit", str(write(folder, name, fcd)), "--net", str(net or HIGHWAY), "--out", str(folder / "out"),
+                "--quiet"]
+        if routes is not None:
+            argv += ["--vtypes", str(write(folder, routes_name, routes))]
+        return argv + [part.replace("{folder}", str(folder)) for part in extra]
+    return build
+
+
+def net_with(old: str, new: str, source: Path = HIGHWAY, count: int = 1) -> str:
+    """A copy of ``source``'s text with ``old`` replaced by ``new`` (``count`` times; -1: everywhere)."""
+    text = source.read_text(encoding="utf-8")
+    assert old in text, old
+    return text.replace(old, new, count)
+
+
+def audit_on_net(net_text: str | bytes, name: str = "bad.net.xml") -> Callable[[Path], list[str]]:
+    def build(folder: Path) -> list[str]:
+        net = write(folder, name, net_text)
+        return audit(net=net, routes=None)(folder)
+    return build
+
+
+def scenario(changes: dict | None = None, files: dict[str, str | bytes] | None = None, name: str = "s.toml",
+             command: str = "run") -> Callable[[Path], list[str]]:
+    """``sumo-rss run`` (or batch) of the valid scenario with ``changes`` (dotted keys; None values delete) and the
+    ``files`` it names written beside it."""
+    def build(folder: Path) -> list[str]:
+        data = _copy(VALID_SCENARIO)
+        for dotted, value in (changes or {}).items():
+            *path, last = dotted.split(".")
+            table = data
+            for key in path:
+                table = table.setdefault(key, {})
+            table[last] = value
+        for file_name, content in (files or {}).items():
+            write(folder, file_name, content)
+        toml = write(folder, name, tomli_w.dumps(data))
+        return [command, str(toml), "--out", str(folder / "out"), "--quiet"]
+    return build
+
+
+def _copy(data: object) -> object:
+    if isinstance(data, dict):
+        return {k: _copy(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_copy(v) for v in data]
+    return data
+
+
+CASES: dict[str, Case] = {
+    # -- scenario files and what they name -----------------------------------------------------------------------
+    "scenario-network-missing": Case(scenario({"network": "nowhere.net.xml"}), ("s.toml", "network", "nowhere.net")),
+    "scenario-network-is-routes": Case(scenario({"network": "r.net.xml"}, {"r.net.xml": ROUTES}),
+                                       ("r.net.xml", "network", "root element <routes>, expected <net>")),
+    "scenario-lanes-without-shape": Case(scenario({"network": "n.net.xml"}, {"n.net.xml": net_with(
+        ' shape="0.00,-8.75 899.87,-8.75"', "")}), ("s.toml: network:", "n.net.xml", "<lane id='hw0_0'>", "shape")),
+    "scenario-lane-length-not-a-number": Case(scenario({"network": "n.net.xml"}, {"n.net.xml": net_with(
+        'length="899.87"', 'length="long"')}), ("n.net.xml", "<lane id='hw0_0'>", "length", "a finite number")),
+    "scenario-connection-to-a-missing-lane": Case(scenario({"network": "n.net.xml"}, {"n.net.xml": net_with(
+        'fromLane="2" toLane="2" via=":h1_0_2"', 'fromLane="2" toLane="7" via=":h1_0_2"')}),
+        ("n.net.xml", "<connection from='hw0' to='hw1'>", "lane 7 of 'hw1'")),
+    "scenario-signal-state-characters": Case(scenario({"network": "n.net.xml"}, {"n.net.xml": net_with(
+        'state="GGgrrrGGgrrr"', 'state="GGgrrrGGgrrX"', TLS_NET)}), ("n.net.xml", "<tlLogic id='C'>: phase 1: state", "ruyYgGoOs")),
+    "scenario-gzip-network-damaged": Case(scenario({"network": "n.net.xml.gz"}, {
+        "n.net.xml.gz": damaged_gzip(HIGHWAY.read_text())}), ("n.net.xml.gz", "network", "not a readable SUMO network")),
+    "scenario-route-file-missing": Case(scenario({"demand.route_files": ["mine.rou.xml"]}),
+                                        ("s.toml", "demand.route_files[0]", "mine.rou.xml", "expected an existing")),
+    "scenario-route-file-is-a-network": Case(scenario({"demand.route_files": ["n.net.xml"]}, {
+        "n.net.xml": HIGHWAY.read_text()}), ("demand.route_files[0]", "n.net.xml", "has <net>")),
+    "scenario-route-file-not-xml": Case(scenario({"demand.route_files": ["r.rou.xml"]}, {"r.rou.xml": "vehicles!"}),
+                                        ("demand.route_files[0]", "r.rou.xml", "expected a readable SUMO XML file")),
+    "scenario-route-file-comma": Case(scenario({"demand.route_files": ["a,b.rou.xml"]}, {"a,b.rou.xml": ROUTES}),
+                                      ("demand.route_files[0]", "without ',' or ';'")),
+    "scenario-additional-file-damaged-gzip": Case(scenario({"sumo.additional_files": ["a.add.xml.gz"]}, {
+        "a.add.xml.gz": damaged_gzip("<additional>" + "<!-- padding -->" * 200 + "</additional>")}),
+        ("sumo.additional_files[0]", "a.add.xml.gz", "expected a readable SUMO XML file")),
+    "scenario-extra-args-unknown-option": Case(scenario({"sumo.extra_args": ["--max-depart-dealy", "5"]}),
+                                               ("s.toml", "sumo.extra_args[0]", "--max-depart-dealy",
+                                                "did you mean --max-depart-delay")),
+    "scenario-extra-args-own-option": Case(scenario({"sumo.extra_args": ["-e", "100"]}),
+                                           ("sumo.extra_args[0]", "set it with the scenario key duration_s")),
+    "scenario-extra-args-value-sumo-refuses": Case(scenario({"sumo.extra_args": ["--max-depart-delay", "soon"]}),
+                                                   ("s.toml", "sumo.extra_args: --max-depart-delay soon",
+                                                    "Invalid Number Format")),
+    "scenario-5000-digit-seed": Case(lambda folder: ["run", str(write(folder, "s.toml", 'network = "highway"\n'
+                                                                      'duration_s = 10\nseed = ' + "9" * 5000)),
+                                                     "--out", str(folder / "out")],
+                                     ("s.toml", "not a TOML file this tool reads", "4300 digits")),
+    "scenario-5000-character-name": Case(scenario({"name": "a/" * 2500}), ("s.toml", "name", "(5002 characters)")),
+    "scenario-named-like-a-batch-file": Case(scenario({"name": "episodes.csv"}, command="batch"),
+                                             ("s.toml", "name", "episodes.csv", "expected a name other than")),
+    "scenario-negative-seeds-option": Case(lambda folder: scenario(command="batch")(folder) + ["--seeds", "-1,2"],
+                                           ("--seeds", "expected a list of integers in [0,", "'-1,2'")),
+    # -- networks given to an audit ------------------------------------------------------------------------------
+    "network-lanes-without-shape": Case(audit_on_net(net_with(' shape="0.00,-5.25 899.87,-5.25"', "")),
+                                        ("bad.net.xml", "<lane id='hw0_1'>", "shape", "at least two points")),
+    "network-shape-1e300": Case(audit_on_net(net_with('shape="0.00,-5.25 899.87,-5.25"',
+                                                      'shape="0.00,-5.25 1e300,-5.25"')),
+                                ("bad.net.xml", "<lane id='hw0_1'>", "shape")),
+    "network-lane-width-negative": Case(audit_on_net(net_with('width="3.50"', 'width="-3.50"')),
+                                        ("bad.net.xml", "<lane id=':h1_0_0'>", "width", "> 0")),
+    "network-junction-without-x": Case(audit_on_net(net_with('<junction id="h0" type="dead_end" x="0.00"',
+                                                             '<junction id="h0" type="dead_end"')),
+                                       ("bad.net.xml", "<junction id='h0'>", "x", "a finite number")),
+    "network-connection-via-unknown-lane": Case(audit_on_net(net_with('via=":h1_0_0"', 'via=":h1_9_9"')),
+                                                ("bad.net.xml", "<connection from='hw0' to='hw1'>", "via")),
+    "network-empty-file": Case(audit_on_net(""), ("bad.net.xml", "not a readable SUMO network")),
+    "network-gzip-damaged": Case(audit_on_net(damaged_gzip(HIGHWAY.read_text()), "bad.net.xml.gz"),
+                                 ("bad.net.xml.gz", "not a readable SUMO network")),
+    # -- vType files -----------------------------------------------------------------------------------------------
+    "vtypes-root-is-fcd": Case(audit(routes=fcd_text()), ("r.rou.xml", "root element <fcd-export>",
+                                                          "expected <routes> or <additional>")),
+    "vtypes-not-xml": Case(audit(routes="vType car length=5"), ("r.rou.xml", "not a readable SUMO route/vType file")),
+    "vtypes-gzip-damaged": Case(audit(routes=damaged_gzip(ROUTES * 20), routes_name="r.rou.xml.gz"),
+                                ("r.rou.xml.gz", "not a readable SUMO route/vType file")),
+    "vtypes-length-sumo-refuses": Case(audit(routes=ROUTES.replace('length="4.5"', 'length="-4.5"')),
+                                       ("r.rou.xml", "SUMO cannot load the vTypes")),
+    # -- output folders --------------------------------------------------------------------------------------------
+    "out-run-is-a-file": Case(lambda folder: scenario()(folder)[:2] + ["--out", str(write(folder, "o", "x"))],
+                              ("--out must be a folder", "o is a file")),
+    "out-audit-under-a-file": Case(lambda folder: audit()(folder) + ["--out", str(write(folder, "o", "x") / "sub")],
+                                   ("--out", "o is a file (expected a folder there)")),
+    "out-audit-csv-is-a-folder": Case(lambda folder: audit()(folder) + ["--out", str(
+        (folder / "o" / "violations.csv").mkdir(parents=True) or folder / "o")],
+        ("--out", "violations.csv is a folder (expected a file there")),
+    "out-batch-is-a-file": Case(lambda folder: scenario(command="batch")(folder)[:2] + ["--out", str(
+        write(folder, "o", "x"))], ("--out must be a folder", "o is a file")),
+}
+
+
+@pytest.fixture
+def handlers():
+    """The audit and run commands install Ctrl-C / SIGTERM handlers: put this process's back afterwards."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for sig, handler in saved.items():
+        signal.signal(sig, handler)
+
+
+def assert_one_line_error(code: int, err: str, named: tuple[str, ...]) -> str:
+    """The command failed with exit code 2 and one line ``sumo-rss: error: ...`` naming every text of ``named``
+    (warnings before it are lines of their own); no traceback, no line of any other kind."""
+    lines = err.strip().splitlines()
+    errors = [line for line in lines if line.startswith("sumo-rss: error: ")]
+    assert code == 2 and len(errors) == 1 and lines[-1] == errors[0], err
+    assert all(line.startswith(("sumo-rss: warning: ", "sumo-rss: error: ")) for line in lines), err
+    assert "Traceback" not in err and len(errors[0]) < 700, err
+    for text in named:
+        assert text in errors[0], (text, errors[0])
+    return errors[0]
+
+
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_a_damaged_input_is_one_line_naming_the_file_and_field_and_leaves_nothing(case, tmp_path, capfd, handlers):
+    argv = CASES[case].build(tmp_path)
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    code = main(argv)
+    assert_one_line_error(code, capfd.readouterr().err, CASES[case].named)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing written, nothing left
+
+
+def test_the_valid_inputs_the_cases_damage_are_valid(tmp_path, capfd, handlers):
+    """The control: the undamaged FCD, vType file and scenario run (else every case above would pass trivially)."""
+    assert main(audit()(tmp_path)) == 0
+    assert (tmp_path / "out" / "episodes.csv").is_file()
+    assert main(scenario({"duration_s": 5.0})(tmp_path / "run")) == 0, capfd.readouterr().err
