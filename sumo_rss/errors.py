@@ -6,13 +6,23 @@ from pathlib import Path
 SHOWN_CHARACTERS = 60  # a value echoed in a message is cut to about this many characters
 
 
-def shown(value: object) -> str:
-    """``repr(value)`` for a message, cut where it is long (a 5000-digit attribute is not echoed in full): its
-    first characters, then how long it was."""
-    text = repr(value)
+def cut(text: str) -> str:
+    """``text`` for a message, cut where it is long (a 5000-digit attribute is not echoed in full): its first
+    characters, then how long it was."""
     if len(text) <= SHOWN_CHARACTERS:
         return text
     return f"{text[:SHOWN_CHARACTERS - 20]}... ({len(text)} characters)"
+
+
+def shown(value: object) -> str:
+    """``repr(value)``, :func:`cut`."""
+    return cut(repr(value))
+
+
+def listed(items: list[str], most: int = 3) -> str:
+    """The first ``most`` of ``items`` (each :func:`cut`), comma-separated, and how many more there are."""
+    more = f" and {len(items) - most} more" if len(items) > most else ""
+    return ", ".join(cut(str(item)) for item in items[:most]) + more
 
 
 class SumoRssError(Exception):

@@ -29,16 +29,18 @@ TLS_STATES = ('<tlsStates>\n    <tlsState time="0.00" id="C" programID="fixed" p
               '    <tlsState time="30.00" id="C" programID="fixed" phase="1" state="yygrrryygrrr"/>\n</tlsStates>\n')
 
 
-def fcd_text(**changed: str) -> str:
-    """The valid FCD, with the attributes ``changed`` of car a at 0.1 s replaced (e.g. ``x="1e300"``)."""
+def fcd_text(every: dict[str, str] | None = None, **changed: str | None) -> str:
+    """The valid FCD, with the attributes ``every`` added to every vehicle and the attributes ``changed`` of car a at
+    0.1 s replaced (e.g. ``x="1e300"``; None: left out)."""
     steps = []
     for time, xa, xb in FCD_STEPS:
         cars = []
         for vid, x in (("a", xa), ("b", xb)):
             attributes = {"id": vid, "x": f"{x:.2f}", "y": "-5.25", "angle": "90.00", "type": "car", "speed": "3.00",
-                          "pos": f"{x:.2f}", "lane": "hw0_1", "posLat": "0.00"}
+                          "pos": f"{x:.2f}", "lane": "hw0_1", "posLat": "0.00", **(every or {})}
             if vid == "a" and time == 0.1:
                 attributes.update(changed)
+            attributes = {k: v for k, v in attributes.items() if v is not None}
             cars.append("        <vehicle " + " ".join(f'{k}="{v}"' for k, v in attributes.items()) + "/>")
         steps.append(f'    <timestep time="{time:.2f}">\n' + "\n".join(cars) + "\n    </timestep>")
     return "<fcd-export>\n" + "\n".join(steps) + "\n</fcd-export>\n"
@@ -207,6 +209,183 @@ CASES: dict[str, Case] = {
 }
 
 
+TLS_FCD = ('<fcd-export>\n    <timestep time="0.00">\n        <vehicle id="a" x="200.00" y="4.80" angle="270.00" '
+           'type="car" speed="10.00" pos="100.00" lane="E_in_0"/>\n    </timestep>\n</fcd-export>\n')
+COLLISION = ('<collisions>\n    <collision time="0.10" type="collision" lane="hw0_1" pos="20.30" collider="{collider}" '
+             'victim="{victim}" colliderType="car" victimType="car" colliderSpeed="3.00" victimSpeed="3.00"/>\n'
+             "</collisions>\n")
+
+
+def with_collisions(text: str, name: str = "c.xml") -> Callable[[Path], list[str]]:
+    def build(folder: Path) -> list[str]:
+        return audit()(folder) + ["--collisions", str(write(folder, name, text))]
+    return build
+
+
+def with_signal_states(text: str) -> Callable[[Path], list[str]]:
+    """An audit on the signalised junction's net with the signal-state file ``text``."""
+    def build(folder: Path) -> list[str]:
+        return audit(TLS_FCD, net=TLS_NET, routes=None)(folder) + ["--tls-states", str(write(folder, "t.xml", text))]
+    return build
+
+
+def batch_file(text: str) -> Callable[[Path], list[str]]:
+    def build(folder: Path) -> list[str]:
+        scenario()(folder)  # s.toml beside it
+        return ["batch", str(write(folder, "b.toml", text)), "--out", str(folder / "out"), "--quiet"]
+    return build
+
+
+# A batch folder as 'sumo-rss batch' writes it, one run with one episode, the ego's, traced (for report cases).
+BATCH = {
+    "batch_summary.csv": "run_id,scenario,variant,seed,status,ego_mean_speed_ms,error\nhw/0,hw,,0,ok,20.5,\n",
+    "episodes.csv": "run_id,scenario,variant,seed,episode_key,vehicle_a,vehicle_b,class_a,class_b,episode_index,"
+                    "situation,conflict_area,t_b_s,t_end_s,duration_s,trigger,owed_a,owed_b,responsible,"
+                    "min_lon_margin_m,min_lat_margin_m,collision,collider,victim,ended_by\n"
+                    "hw/0,hw,,0,car.1|ego|1,car.1,ego,background,ego,1,same-direction,,2.000000,3.000000,1.000000,"
+                    "lon,lon:brake-at-most-max,lon:brake-min,b,-1.500000,-2.000000,False,,,safe\n",
+    "violations.csv": "run_id,scenario,variant,seed,episode_key,vehicle_id,vehicle_class,role,constraint,bound,"
+                      "worst_actual,excess,t_start_s,t_end_s\nhw/0,hw,,0,car.1|ego|1,ego,ego,rear,"
+                      "lon-brake-after-response-time,-4.000000,-1.000000,3.000000,2.100000,3.000000\n",
+    "collisions.csv": "run_id,scenario,variant,seed,time_s,collider,victim,sumo_type,blamed,episode_key\n",
+    "pair_states.csv": "run_id,scenario,variant,seed,episode_key,time_s,lon_gap_m,lon_d_min_m,lat_gap_m,lat_d_min_m,"
+                       "dangerous\nhw/0,hw,,0,car.1|ego|1,2.000000,10.000000,11.500000,-2.000000,0.300000,True\n"
+                       "hw/0,hw,,0,car.1|ego|1,2.100000,9.000000,11.000000,-2.000000,0.300000,True\n",
+    "hw/0/ego_trace.csv": "time_s,x_m,y_m,speed_ms,accel_ms2,lane_id,lane_pos_m,lat_pos_m\n"
+                          "2.000000,10.0,-5.25,20.500000,0.0,hw0_1,10.0,0.0\n",
+}
+
+
+def report(**damaged: str | bytes) -> Callable[[Path], list[str]]:
+    """``sumo-rss report`` of the batch folder BATCH with the files ``damaged`` (by name) replaced or added."""
+    def build(folder: Path) -> list[str]:
+        files = {**BATCH, **damaged}
+        for name, text in files.items():
+            if text is not None:
+                write(folder / "batch", name, text)
+        return ["report", str(folder / "batch")]
+    return build
+
+
+def without_column(name: str, column: str) -> str:
+    """BATCH's CSV ``name`` without ``column`` (header and cells)."""
+    rows = [line.split(",") for line in BATCH[name].splitlines()]
+    k = rows[0].index(column)
+    return "".join(",".join(row[:k] + row[k + 1:]) + "\n" for row in rows)
+
+
+def replaced(name: str, old: str, new: str) -> str:
+    assert old in BATCH[name], old
+    return BATCH[name].replace(old, new, 1)
+
+
+CASES.update({
+    # -- FCD files: values no vehicle can have, or that contradict the network; damage; structure -----------------
+    "fcd-x-1e300": Case(audit(fcd_text(x="1e300")), ("f.xml, time step 0.1 s", "vehicle 'a'", "x:")),
+    "fcd-speed-1e300": Case(audit(fcd_text(speed="1e300")), ("f.xml, time step 0.1 s", "vehicle 'a'", "speed:",
+                                                             "at most 200 m/s")),
+    "fcd-position-1e6-m-off-its-lane": Case(audit(fcd_text(y="1000000")), (
+        "f.xml, time step 0.1 s", "vehicle 'a'", "x, y: expected a position on its lane 'hw0_1'")),
+    "fcd-position-off-its-lane-without-pos": Case(audit(fcd_text(y="60", pos=None)), (
+        "f.xml, time step 0.1 s", "vehicle 'a'", "x, y: expected a position on its lane")),
+    "fcd-pos-past-the-lane-end": Case(audit(fcd_text(pos="5000")), ("f.xml", "vehicle 'a'", "pos:")),
+    "fcd-posLat-50-m": Case(audit(fcd_text(posLat="50")), ("f.xml", "vehicle 'a'", "posLat:")),
+    "fcd-acceleration-1e9": Case(audit(fcd_text({"acceleration": "0.00"}, acceleration="1e9")), (
+        "f.xml", "vehicle 'a'", "acceleration:")),
+    "fcd-speedLat-1e5": Case(audit(fcd_text({"speedLat": "0.00"}, speedLat="1e5")), ("f.xml", "vehicle 'a'",
+                                                                                     "speedLat:")),
+    "fcd-angle-1e300": Case(audit(fcd_text(angle="1e300")), ("f.xml", "vehicle 'a'", "angle:")),
+    "fcd-signals-overflow": Case(audit(fcd_text(signals="99999999999999999999999")), (
+        "f.xml, time step 0.1 s", "vehicle 'a'", "signals:", "an integer")),
+    "fcd-signals-negative": Case(audit(fcd_text(signals="-1")), ("f.xml", "vehicle 'a'", "signals:", "[0, ")),
+    "fcd-5000-digit-x": Case(audit(fcd_text(x="9" * 5000)), ("f.xml", "vehicle 'a'", "x:", "(5002 characters)")),
+    "fcd-speed-nan": Case(audit(fcd_text(speed="nan")), ("f.xml", "vehicle 'a'", "speed: expected a finite number")),
+    "fcd-unknown-lane": Case(audit(fcd_text(lane="nowhere_0")), ("f.xml, time step 0.1 s",
+                                                                 "lanes not in highway.net.xml: nowhere_0", "--net")),
+    "fcd-5000-character-lane": Case(audit(fcd_text(lane="l" * 5000)), ("f.xml", "lanes not in highway.net.xml",
+                                                                       "(5000 characters)")),
+    "fcd-vehicle-without-id": Case(audit(fcd_text(id=None)), ("f.xml, time step 0.1 s", "lacks the attribute 'id'")),
+    "fcd-vehicle-twice": Case(audit(fcd_text(id="b")), ("f.xml, time step 0.1 s", "vehicle 'b' is listed more than once")),
+    "fcd-time-nan": Case(audit(fcd_text().replace('time="0.10"', 'time="nan"')), (
+        "f.xml", "<timestep> (after time step 0.0 s): time: expected a number of seconds")),
+    "fcd-time-going-back": Case(audit(fcd_text().replace('time="0.20"', 'time="0.05"')), (
+        "f.xml", "time step 0.05 s does not follow 0.1 s")),
+    "fcd-time-steps-1-us-apart": Case(audit(fcd_text().replace('time="0.10"', 'time="0.000001"')), (
+        "f.xml", "time: expected at least 0.001 s after the time step before")),
+    "fcd-time-1e300": Case(audit(fcd_text().replace('time="0.20"', 'time="1e300"')), ("f.xml", "time: expected at most")),
+    "fcd-root-is-routes": Case(audit(ROUTES), ("f.xml", "not an FCD file (root element <routes>, expected <fcd-export>)")),
+    "fcd-damaged-inside": Case(audit(fcd_text().replace("</timestep>", "</timestap>", 2)), (
+        "f.xml", "malformed or truncated FCD after time step 0.00 s")),
+    "fcd-gzip-damaged-deflate-stream": Case(audit(damaged_gzip(fcd_text() * 30), name="f.xml.gz"), (
+        "f.xml.gz", "malformed or truncated FCD")),
+    "fcd-gzip-not-gzip": Case(audit(fcd_text(), name="f.xml.gz"), ("f.xml.gz", "malformed or truncated FCD",
+                                                                    "Not a gzipped file")),
+    "fcd-gzip-speed-1e300": Case(audit(gzip.compress(fcd_text(speed="1e300").encode()), name="f.xml.gz"), (
+        "f.xml.gz, time step 0.1 s", "vehicle 'a'", "speed:")),
+    "fcd-gzip-unknown-lane": Case(audit(gzip.compress(fcd_text(lane="x_0").encode()), name="f.xml.gz"), (
+        "f.xml.gz, time step 0.1 s", "lanes not in highway.net.xml: x_0")),
+    # -- collision files --------------------------------------------------------------------------------------------
+    "collisions-collider-is-victim": Case(with_collisions(COLLISION.format(collider="a", victim="a")), (
+        "c.xml: <collision> 1", "collider and victim are both 'a'")),
+    "collisions-vehicle-not-in-the-fcd": Case(with_collisions(COLLISION.format(collider="a", victim="zz")), (
+        "c.xml: <collision> at 0.1 s", "'zz' not in", "f.xml")),
+    "collisions-time-nan": Case(with_collisions(COLLISION.format(collider="a", victim="b").replace(
+        'time="0.10"', 'time="nan"')), ("c.xml: <collision> 1", "time='nan' is not a finite number")),
+    "collisions-no-victim": Case(with_collisions(COLLISION.format(collider="a", victim="")), (
+        "c.xml: <collision> 1", "attribute 'victim' is missing or empty")),
+    "collisions-root-is-fcd": Case(with_collisions(fcd_text()), ("c.xml", "not a readable SUMO collision-output file",
+                                                                 "expected <collisions>")),
+    "collisions-gzip-damaged": Case(with_collisions(damaged_gzip(COLLISION.format(collider="a", victim="b") * 30),
+                                                    "c.xml.gz"), ("c.xml.gz", "not a readable SUMO collision-output")),
+    # -- signal-state files -----------------------------------------------------------------------------------------
+    "signal-states-state-too-short": Case(with_signal_states(TLS_STATES.replace('"GGgrrrGGgrrr"', '"GGgrrr"')), (
+        "t.xml: <tlsState> 1 (signal 'C')", "state: expected 12 characters", "(6 characters)")),
+    "signal-states-invalid-characters": Case(with_signal_states(TLS_STATES.replace("GGgrrrGGgrrr", "GGgrrrGGgrXX")), (
+        "t.xml: <tlsState> 1 (signal 'C')", "state:", "ruyYgGoOs")),
+    "signal-states-time-nan": Case(with_signal_states(TLS_STATES.replace('time="30.00"', 'time="nan"')), (
+        "t.xml: <tlsState> 2 (signal 'C')", "time: expected a number of seconds >= 0")),
+    "signal-states-time-going-back": Case(with_signal_states(TLS_STATES.replace('time="30.00"', 'time="-5"')), (
+        "t.xml: <tlsState> 2", "time: expected a number of seconds >= 0")),
+    "signal-states-earlier-than-before": Case(with_signal_states(TLS_STATES.replace('time="0.00"', 'time="40.00"')), (
+        "t.xml: <tlsState> 2 (signal 'C')", "time: expected no earlier than the signal's state before (40 s)")),
+    "signal-states-of-another-net": Case(with_signal_states(TLS_STATES.replace('id="C"', 'id="J9"')), (
+        "t.xml", "states of signal(s) J9 that", "does not have")),
+    "signal-states-root-is-fcd": Case(with_signal_states(fcd_text()), ("t.xml", "not a readable SUMO signal-state")),
+    # -- batch files and folders ------------------------------------------------------------------------------------
+    "batch-scenario-missing": Case(batch_file('[batch]\nscenarios = ["nope.toml"]\n'), (
+        "b.toml", "batch.scenarios[0]", "expected an existing scenario file")),
+    "batch-seeds-negative": Case(batch_file('[batch]\nscenarios = ["s.toml"]\nseeds = [-1]\n'), (
+        "b.toml", "batch.seeds", "expected a list of integers in [0,")),
+    "batch-grid-unknown-preset": Case(batch_file('[batch]\nscenarios = ["s.toml"]\n[batch.grid]\n'
+                                                 'rss_preset = ["nope"]\n'), ("b.toml", "batch.grid.rss_preset")),
+    "batch-the-same-scenario-twice": Case(batch_file('[batch]\nscenarios = ["s.toml", "./s.toml"]\n'), (
+        "b.toml", "batch.scenarios", "distinct names")),
+    # -- the report's inputs ----------------------------------------------------------------------------------------
+    "report-episodes-column-missing": Case(report(**{"episodes.csv": without_column("episodes.csv", "responsible")}),
+                                           ("episodes.csv", "column 'responsible' is missing")),
+    "report-episodes-time-not-a-number": Case(report(**{"episodes.csv": replaced(
+        "episodes.csv", "2.000000,3.000000", "two,3.000000")}), ("episodes.csv: line 2: column 't_b_s'",
+                                                                 "expected a finite number, got 'two'")),
+    "report-episodes-responsible-unknown": Case(report(**{"episodes.csv": replaced(
+        "episodes.csv", "lon:brake-min,b,", "lon:brake-min,maybe,")}), ("episodes.csv: line 2: column 'responsible'",
+                                                                         "expected one of a, b, both, none")),
+    "report-pair-states-gap-not-a-number": Case(report(**{"pair_states.csv": replaced(
+        "pair_states.csv", "9.000000,11.000000", "nine,11.000000")}), ("pair_states.csv: line 3: column 'lon_gap_m'",)),
+    "report-violations-bound-inf": Case(report(**{"violations.csv": replaced(
+        "violations.csv", "-4.000000", "-inf")}), ("violations.csv: line 2: column 'bound'",)),
+    "report-summary-seed-not-a-number": Case(report(**{"batch_summary.csv": replaced(
+        "batch_summary.csv", "hw,,0,ok", "hw,,zero,ok")}), ("batch_summary.csv: line 2: column 'seed'",)),
+    "report-ego-trace-speed-not-a-number": Case(report(**{"hw/0/ego_trace.csv": BATCH["hw/0/ego_trace.csv"].replace(
+        "20.500000", "fast")}), ("ego_trace.csv: line 2: column 'speed_ms'",)),
+    "report-violations-not-a-csv": Case(report(**{"violations.csv": b"\x00\xff\xfe" * 50}), (
+        "violations.csv: not a CSV file")),
+    "report-html-is-a-folder": Case(report(**{"report.html/x": "a file in a folder report.html"}), (
+        "the batch folder", "report.html is a folder (expected a file there")),
+    "report-figures-folder-is-a-file": Case(lambda folder: report(report="not a folder")(folder), (
+        "batch/report: cannot be written", "report is a file (expected a folder there)")),
+})
+
+
 @pytest.fixture
 def handlers():
     """The audit and run commands install Ctrl-C / SIGTERM handlers: put this process's back afterwards."""
@@ -239,7 +418,12 @@ def test_a_damaged_input_is_one_line_naming_the_file_and_field_and_leaves_nothin
 
 
 def test_the_valid_inputs_the_cases_damage_are_valid(tmp_path, capfd, handlers):
-    """The control: the undamaged FCD, vType file and scenario run (else every case above would pass trivially)."""
-    assert main(audit()(tmp_path)) == 0
-    assert (tmp_path / "out" / "episodes.csv").is_file()
-    assert main(scenario({"duration_s": 5.0})(tmp_path / "run")) == 0, capfd.readouterr().err
+    """The control: the undamaged inputs are accepted (else the cases above would pass trivially)."""
+    assert main(with_collisions(COLLISION.format(collider="a", victim="b"))(tmp_path / "audit")) == 0
+    assert (tmp_path / "audit" / "out" / "episodes.csv").is_file()
+    assert main(with_signal_states(TLS_STATES)(tmp_path / "tls")) == 0
+    assert main(report()(tmp_path / "report")) == 0
+    assert (tmp_path / "report" / "batch" / "report.html").is_file()
+    assert main(scenario({"duration_s": 5.0})(tmp_path / "run")) == 0
+    assert main(scenario({"duration_s": 5.0, "name": "b"}, command="batch")(tmp_path / "batch")) == 0
+    assert "sumo-rss: error" not in capfd.readouterr().err

@@ -1,8 +1,9 @@
 """Run one task (scenario variant + seed) into its own run directory, written atomically.
 
 A run directory ``<out>/<scenario>[__<variant>]/<seed>/`` holds: ``manifest.json`` (versions, seed, parameter
-hash, and the size and SHA-256 of every other file of the folder: :mod:`~sumo_rss.batch.integrity`), ``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the
-ego's episodes step by step), the resolved ``scenario.toml``, the SUMO inputs/outputs and logs.
+hash, and the size and SHA-256 of every other file of the folder: :mod:`~sumo_rss.batch.integrity`),
+``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the ego's episodes
+step by step), the resolved ``scenario.toml``, the SUMO inputs/outputs and logs.
 """
 from __future__ import annotations
 

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import base64
 import html
+import io
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import atomic_path, make_folder, write_text
+from ..files import make_folder, write_file_set
 from .inputs import check_table
 from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import ego_table, read_batch_csv, responsibility_table, run_label, violation_table
@@ -20,7 +21,9 @@ REPORT_FILES = ("report.html",)  # written into the batch folder (and the figure
 
 
 def write_report(batch_dir: Path) -> Path:
-    """Write the PNGs and report.html of a batch folder; returns the HTML path."""
+    """Write the PNGs and report.html of a batch folder; returns the HTML path. Every input is read and checked
+    first, and the outputs are written as a set (:func:`~sumo_rss.files.write_file_set`): a damaged input or a full
+    disk leaves the folder as it was."""
     batch_dir = Path(batch_dir)
     path = batch_dir / "batch_summary.csv"
     if not path.is_file():
@@ -29,8 +32,7 @@ def write_report(batch_dir: Path) -> Path:
     if summary.empty:
         raise SumoRssError(f"{path}: lists no runs")
     episodes, violations, states = (_read(batch_dir, name) for name in ("episodes", "violations", "pair_states"))
-    figures_dir = batch_dir / "report"
-    make_folder(figures_dir)
+    traces = ego_traces(batch_dir, summary)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
     responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
     ego = ego_table(episodes, summary)
@@ -39,22 +41,34 @@ def write_report(batch_dir: Path) -> Path:
     timeline = longest_traced_episode(episodes, states)
     if timeline is not None:
         figures["pair_timeline"] = pair_timeline(states, timeline)[0]
-    traces = ego_traces(batch_dir, summary)
     if traces:
         figures["ego_speed"] = ego_speed(traces)[0]
-    for stale in set(FIGURES) - set(figures):  # a figure this batch does not have must not linger from an older one
-        (figures_dir / f"{stale}.png").unlink(missing_ok=True)
     images = {}
     for name, fig in figures.items():
-        path = figures_dir / f"{name}.png"
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
+        png = io.BytesIO()
+        fig.savefig(png, dpi=100, format="png")
         plt.close(fig)
-        images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
-    page = _page(batch_dir, summary, ego, responsibility, broken, images)
-    out = batch_dir / "report.html"
-    write_text(out, page)
+        images[name] = png.getvalue()
+    page = _page(batch_dir, summary, ego, responsibility, broken,
+                 {name: base64.b64encode(data).decode("ascii") for name, data in images.items()})
+    figures_dir, out = batch_dir / "report", batch_dir / "report.html"
+    made = not figures_dir.exists()
+    make_folder(figures_dir)
+    writers = {figures_dir / f"{name}.png": _bytes_writer(data) for name, data in images.items()}
+    writers[out] = lambda tmp: tmp.write_text(page, encoding="utf-8")
+    try:
+        write_file_set(writers)
+    except SumoRssError:
+        if made:
+            figures_dir.rmdir()
+        raise
+    for stale in set(FIGURES) - set(figures):  # a figure this batch does not have must not linger from an older one
+        (figures_dir / f"{stale}.png").unlink(missing_ok=True)
     return out
+
+
+def _bytes_writer(data: bytes):
+    return lambda path: path.write_bytes(data)
 
 
 def _read(batch_dir: Path, name: str) -> pd.DataFrame:

@@ -51,7 +51,7 @@ class NetTopology:
     edges: dict[str, EdgeInfo]
     lanes: dict[str, tuple[Permissions, ...]]  # by edge, by lane index
     lane_links: dict[tuple[str, str], frozenset[tuple[int, int]]]  # (from, to) edge → (from, to) lane indices
-    signals: dict[str, int] = field(default_factory=dict)  # traffic signal id → links it controls (its states' length)
+    signals: dict[str, int] = field(default_factory=dict)  # signal id → links it controls (its states' length)
 
     def connected(self, from_edge: str, to_edge: str, vclass: str | None = None) -> bool:
         """Whether ``to_edge`` follows ``from_edge``, for ``vclass`` (None: for any class) through a connection
