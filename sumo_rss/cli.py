@@ -110,7 +110,7 @@ class _Parser(argparse.ArgumentParser):
     """An option error as one line ``sumo-rss: error: ...`` (argparse prints its usage first), exit code 2."""
 
     def error(self, message: str):
-        self.exit(EXIT_BAD_INPUT, f"sumo-rss: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
+        self.exit(EXIT_BAD_INPUT, f"sumo-rss: error: {' '.join(message.split())}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

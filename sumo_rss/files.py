@@ -18,6 +18,7 @@ import pandas as pd
 from .errors import OutputError
 
 CSV_FLOAT_FORMAT = "%.6f"  # every CSV the project writes: 6 decimals, so the same run gives the same bytes
+SANE_MAGNITUDE = 1e10  # no number written into a CSV is larger (positions are at most 1e8 m, times 1e9 s)
 _REASONS = {  # what an OSError while writing means for the user
     errno.ENOSPC: "no space left on its disk (free some, or write elsewhere)",
     errno.EDQUOT: "the disk quota is exhausted (free some space, or write elsewhere)",
@@ -138,8 +139,17 @@ def _plain(value: object) -> object:
 
 
 def csv_writer(frame: pd.DataFrame) -> Callable[[Path], None]:
-    """A function writing ``frame`` to a path without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends."""
+    """A function writing ``frame`` to a path without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends;
+    ValueError instead where a number is infinite or beyond SANE_MAGNITUDE (the inputs are checked so that none
+    is: one that got through is a bug, and no absurd number is ever written into a CSV)."""
     def write(path: Path) -> None:
+        numbers = frame.select_dtypes(include="number")
+        absurd = ~(numbers.abs() <= SANE_MAGNITUDE) & numbers.notna()
+        if absurd.to_numpy().any():
+            column = absurd.any().idxmax()
+            row = int(absurd[column].to_numpy().argmax())
+            raise ValueError(f"{path.with_name(path.name.removeprefix('.').removesuffix('.tmp'))}: not written: line "
+                             f"{row + 2}, column {column!r} would be {float(numbers[column].iloc[row]):g}")
         frame.to_csv(path, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
     return write
 

@@ -194,6 +194,10 @@ CASES: dict[str, Case] = {
     "vtypes-not-xml": Case(audit(routes="vType car length=5"), ("r.rou.xml", "not a readable SUMO route/vType file")),
     "vtypes-gzip-damaged": Case(audit(routes=damaged_gzip(ROUTES * 20), routes_name="r.rou.xml.gz"),
                                 ("r.rou.xml.gz", "not a readable SUMO route/vType file")),
+    "vtypes-length-1e300-sumo-accepts": Case(audit(routes=ROUTES.replace('length="4.5"', 'length="1e300"')), (
+        "r.rou.xml", "vType 'car': length: expected a number in [0.1, 2000] m")),
+    "vtypes-decel-1e-300": Case(audit(routes=ROUTES.replace('decel="4.5"', 'decel="1e-300"')), (
+        "r.rou.xml", "vType 'car': decel:")),
     "vtypes-length-sumo-refuses": Case(audit(routes=ROUTES.replace('length="4.5"', 'length="-4.5"')),
                                        ("r.rou.xml", "SUMO cannot load the vTypes")),
     # -- output folders --------------------------------------------------------------------------------------------

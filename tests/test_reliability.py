@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -120,6 +121,12 @@ def test_a_resumed_batch_runs_a_damaged_run_again_and_names_the_file(two_scenari
     assert {"episodes.csv", "summary.json", "routes.rou.xml", "sumo.log"} <= set(listed)
     assert listed["episodes.csv"]["bytes"] == (out / "light" / "0" / "episodes.csv").stat().st_size
     assert len(listed["episodes.csv"]["sha256"]) == 64
+    # A file where a run's folder belongs is no finished run either (it was a NotADirectoryError traceback).
+    shutil.rmtree(out / "light" / "0")
+    (out / "light" / "0").write_text("not a run")
+    with pytest.warns(UserWarning, match="1 run folder\\(s\\) are not a finished run"):
+        assert run_batch(tasks, out, LocalExecutor(workers=1), progress=False).status.tolist() == ["ok", "ok"]
+    assert (out / "episodes.csv").read_bytes() == whole["episodes"]
 
 
 def _worker_pids(parent: int) -> list[int]:

@@ -61,7 +61,10 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
                           f"(made from other scenario parameters, interrupted or damaged: {first}"
                           f"{'; ...' if len(stale) > 3 else ''}); running them again", stacklevel=2)
             for folder in stale:  # gone first: a rerun that fails must not leave the old results standing for it
-                shutil.rmtree(folder)
+                if folder.is_dir() and not folder.is_symlink():
+                    shutil.rmtree(folder)
+                else:  # a file (or a link) where the run's folder belongs
+                    folder.unlink()
         failed, outcomes = 0, {}
         with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="runs", unit="run", disable=not progress,
                   file=sys.stderr, dynamic_ncols=True) as bar:

@@ -110,13 +110,19 @@ class AuditResult:
         they were judged with, rss_params.json, as a set (:func:`~sumo_rss.files.write_file_set`: all of them or,
         when one cannot be written, none)."""
         directory = Path(directory)
+        made = not directory.exists()
         make_folder(directory)
         frames = {"episodes.csv": self.episodes, "violations.csv": self.violations, "collisions.csv": self.collisions,
                   "pair_states.csv": self.pair_states}
         writers = {directory / name: csv_writer(frames[name]) for name in self.file_names() if name in frames}
         params = json_text(self.params)
         writers[directory / PARAMS_FILE] = lambda path: path.write_text(params, encoding="utf-8")
-        write_file_set(writers)
+        try:
+            write_file_set(writers)
+        except BaseException:
+            if made:  # nothing left behind: neither the files nor the folder made for them
+                directory.rmdir()
+            raise
 
 
 def collision_blame(records: list[dict]) -> tuple[str, str]:
