@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import warnings
 
-import pytest
-
 from conftest import NETWORKS, run_cli
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.fcd import FcdReader

@@ -17,7 +17,7 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
-from conftest import REPO, SCENARIOS, run_cli, write_scenario
+from conftest import REPO, SCENARIOS, run_cli, two_scenario_batch, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
 from sumo_rss.batch.orchestrator import _BatchLock, run_batch
@@ -33,12 +33,7 @@ AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.
 @pytest.fixture
 def two_scenarios(tmp_path, valid_scenario):
     """Two 20 s highway scenarios (different demand) and a batch file over seeds 0 and 1."""
-    valid_scenario["duration_s"] = 20.0
-    write_scenario(tmp_path, valid_scenario, "light.toml")
-    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 3000
-    write_scenario(tmp_path, valid_scenario, "busy.toml")
-    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["light.toml", "busy.toml"]\nseeds = [0, 1]\n')
-    return tmp_path
+    return two_scenario_batch(tmp_path, valid_scenario, 20.0, "[0, 1]")
 
 
 def test_two_worker_batch_equals_running_each_alone(two_scenarios, tmp_path):

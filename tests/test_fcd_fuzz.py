@@ -20,7 +20,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import NETWORKS, VALID_SCENARIO
+from conftest import NETWORKS, VALID_SCENARIO, write_scenario
 from sumo_rss import load_scenario
 from sumo_rss.batch.runner import run_one
 from sumo_rss.errors import SumoRssError
@@ -47,8 +47,6 @@ def base(tmp_path_factory):
     data = {**VALID_SCENARIO, "duration_s": 5.0, "seed": 3}
     data["demand"] = {**data["demand"], "flows": [{"id": "main", "route": ["hw0", "hw1", "hw2"],
                                                    "veh_per_hour": 7000}]}
-    from conftest import write_scenario
-
     spec = load_scenario(write_scenario(folder, data))
     run_one(spec, folder / "out", fcd=True)
     run = folder / "out" / spec.name / str(spec.seed)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import NETWORKS, REPO, run_cli, write_scenario
+from conftest import NETWORKS, REPO, run_cli, two_scenario_batch
 from sumo_rss.batch.executors import LocalExecutor
 from sumo_rss.batch.orchestrator import run_batch
 from sumo_rss.batch.spec import load_batch
@@ -29,12 +29,7 @@ HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 @pytest.fixture
 def two_scenarios(tmp_path, valid_scenario):
     """Two 10 s highway scenarios (different demand) and a batch file over seed 0."""
-    valid_scenario["duration_s"] = 10.0
-    write_scenario(tmp_path, valid_scenario, "light.toml")
-    valid_scenario["demand"]["flows"][0]["veh_per_hour"] = 3000
-    write_scenario(tmp_path, valid_scenario, "busy.toml")
-    (tmp_path / "batch.toml").write_text('[batch]\nscenarios = ["light.toml", "busy.toml"]\nseeds = [0]\n')
-    return tmp_path
+    return two_scenario_batch(tmp_path, valid_scenario, 10.0, "[0]")
 
 
 def _file_size_limit(size: int):
