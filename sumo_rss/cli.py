@@ -462,8 +462,11 @@ def _cmd_nets(args: argparse.Namespace) -> int:
 
 
 def _cmd_train_intent(args: argparse.Namespace) -> int:
+    from .files import check_output_folder
     from .planner.intention.pipeline import DEFAULT_SCENARIOS, DataPlan, summary_lines, train_intent
     from .planner.intention.train import TrainSettings
+
+    check_output_folder(args.out, "--out")
 
     shipped = Path(__file__).resolve().parent.parent / "scenarios"
     paths = args.scenarios or [shipped / f"{name}.toml" for name in DEFAULT_SCENARIOS]

@@ -54,6 +54,9 @@ class Case:
     build: Callable[[Path], list[str]]
     named: tuple[str, ...]
 
+    def __post_init__(self) -> None:
+        assert isinstance(self.named, tuple), self.named  # ("x") is a string, whose letters any message has
+
 
 def write(folder: Path, name: str, text: str | bytes) -> Path:
     path = folder / name
@@ -208,6 +211,8 @@ CASES: dict[str, Case] = {
     "out-audit-csv-is-a-folder": Case(lambda folder: audit()(folder) + ["--out", str(
         (folder / "o" / "violations.csv").mkdir(parents=True) or folder / "o")],
         ("--out", "violations.csv is a folder (expected a file there")),
+    "out-train-intent-is-a-file": Case(lambda folder: ["train-intent", "--out", str(write(folder, "o", "x"))], (
+        "--out must be a folder", "o is a file")),
     "out-batch-is-a-file": Case(lambda folder: scenario(command="batch")(folder)[:2] + ["--out", str(
         write(folder, "o", "x"))], ("--out must be a folder", "o is a file")),
 }
@@ -354,6 +359,8 @@ CASES.update({
         "t.xml: <tlsState> 2 (signal 'C')", "time: expected no earlier than the signal's state before (40 s)")),
     "signal-states-of-another-net": Case(with_signal_states(TLS_STATES.replace('id="C"', 'id="J9"')), (
         "t.xml", "states of signal(s) J9 that", "does not have")),
+    "signal-states-without-id": Case(with_signal_states(TLS_STATES.replace(' id="C"', "", 1)), (
+        "t.xml: <tlsState> 1: id: expected the id of a signal of the network",)),
     "signal-states-root-is-fcd": Case(with_signal_states(fcd_text()), ("t.xml", "not a readable SUMO signal-state")),
     # -- batch files and folders ------------------------------------------------------------------------------------
     "batch-scenario-missing": Case(batch_file('[batch]\nscenarios = ["nope.toml"]\n'), (
@@ -382,7 +389,7 @@ CASES.update({
     "report-ego-trace-speed-not-a-number": Case(report(**{"hw/0/ego_trace.csv": BATCH["hw/0/ego_trace.csv"].replace(
         "20.500000", "fast")}), ("ego_trace.csv: line 2: column 'speed_ms'",)),
     "report-violations-not-a-csv": Case(report(**{"violations.csv": b"\x00\xff\xfe" * 50}), (
-        "violations.csv: not a CSV file")),
+        "violations.csv: not a CSV file",)),
     "report-html-is-a-folder": Case(report(**{"report.html/x": "a file in a folder report.html"}), (
         "the batch folder", "report.html is a folder (expected a file there")),
     "report-figures-folder-is-a-file": Case(lambda folder: report(report="not a folder")(folder), (

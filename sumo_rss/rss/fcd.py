@@ -192,7 +192,7 @@ class _CollisionReports:
         outside = self._reports[:self._before] + self._reports[self._next:]
         if outside:
             span = f"{self._steps[0]:g}-{self._steps[1]:g} s" if self._steps else "no time steps"
-            first = ", ".join(f"{c.collider}/{c.victim} at {c.time:g} s" for c in outside[:3])
+            first = ", ".join(f"{cut(c.collider)}/{cut(c.victim)} at {c.time:g} s" for c in outside[:3])
             warnings.warn(f"{collisions}: {len(outside)} collision report(s) outside the time steps of {fcd} ({span}) "
                           f"not audited: {first}{', ...' if len(outside) > 3 else ''}", stacklevel=3)
 
@@ -470,7 +470,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         check_collisions_in_fcd(collisions, fcd, reports.audited(), set(unseen.tolist()) - reader.people)
         reports.warn_unused(collisions, fcd)
     if absent:
-        warnings.warn(f"{fcd}: no vehicle {', '.join(sorted(absent))} (given as the ego): audited without it",
+        warnings.warn(f"{fcd}: no vehicle {listed(sorted(absent))} (given as the ego): audited without it",
                       stacklevel=2)
     return auditor.finish()
 

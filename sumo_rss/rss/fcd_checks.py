@@ -16,13 +16,13 @@ from ..errors import SumoRssError, shown
 from ..road.net_check import MAX_COORDINATE_M
 from ..road.network import RoadNetwork
 
-MAX_SPEED = 200.0  # [m/s] 720 km/h: faster than any vehicle SUMO models (its fastest vClass default is 320 km/h)
+MAX_SPEED = 200.0  # [m/s] 720 km/h: faster than any road or rail vehicle
 MIN_STEP_S = 0.001  # [s] SUMO's shortest step length: time steps closer than this are not a SUMO output
 MAX_ACCEL = MAX_SPEED / MIN_STEP_S  # [m/s²] from the top speed to a standstill within SUMO's shortest step
 MAX_TIME_S = 1e9  # [s] about 32 years of simulated time
 MAX_ANGLE_DEG = 720.0  # SUMO writes angles in [0, 360); anything beyond two turns either way is no angle
 OFF_LANE_M = 10.0  # [m] a front bumper farther than this beyond its lane's edge is not on that lane
-LANE_END_M = 1.0  # [m] lane positions this far before the start or past the end of the lane are on another one
+LANE_END_M = 1.0  # [m] how far a lane position may lie before the start or past the end of its lane (rounding)
 MAX_SIGNALS = 2**31 - 1  # SUMO's vehicle signals are bits of a 32-bit integer
 
 

@@ -22,6 +22,9 @@ def signal_state(path: Path, number: int, elem: ET.Element, links: dict[str, int
     caller). SumoRssError naming the file, the record and the attribute otherwise."""
     signal = elem.get("id", "")
     record = f"{path}: <tlsState> {number} (signal {shown(signal)})"
+    if not signal:
+        raise SumoRssError(f"{path}: <tlsState> {number}: id: expected the id of a signal of the network, got "
+                           "nothing")
     text = elem.get("time")
     try:
         time = float(text) if text is not None else math.nan
