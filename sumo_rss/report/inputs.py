@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import SumoRssError, shown
-from ..rss.auditor import COLLISION_COLUMNS, PAIR_STATE_COLUMNS
+from ..rss.auditor import COLLISION_COLUMNS
+from ..rss.episode_states import PAIR_STATE_COLUMNS
 from ..rss.records import EPISODE_COLUMNS, VIOLATION_COLUMNS
 from ..rss.responsibility import RESPONSIBLE_VALUES
 
