@@ -272,7 +272,7 @@ def report(**damaged: str | bytes) -> Callable[[Path], list[str]]:
         for name, text in files.items():
             if text is not None:
                 write(folder / "batch", name, text)
-        return ["report", str(folder / "batch")]
+        return ["report", str(folder / "batch"), "--quiet"]
     return build
 
 

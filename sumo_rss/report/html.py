@@ -52,17 +52,17 @@ def write_report(batch_dir: Path, views: bool = True, progress: bool = False) ->
         fig.savefig(png, dpi=100, format="png")
         plt.close(fig)
         images[name] = png.getvalue()
-    links = _view_links(batch_dir, summary, progress) if views else {}
-    page = _page(batch_dir, summary, ego, responsibility, broken,
-                 {name: base64.b64encode(data).decode("ascii") for name, data in images.items()}, links)
     figures_dir, out = batch_dir / "report", batch_dir / "report.html"
     made = not figures_dir.exists()
-    make_folder(figures_dir)
-    writers = {figures_dir / f"{name}.png": _bytes_writer(data) for name, data in images.items()}
-    writers[out] = lambda tmp: tmp.write_text(page, encoding="utf-8")
+    make_folder(figures_dir)  # before the runs' replay pages: a file standing there fails before anything is written
     try:
+        links = _view_links(batch_dir, summary, progress) if views else {}
+        page = _page(batch_dir, summary, ego, responsibility, broken,
+                     {name: base64.b64encode(data).decode("ascii") for name, data in images.items()}, links)
+        writers = {figures_dir / f"{name}.png": _bytes_writer(data) for name, data in images.items()}
+        writers[out] = lambda tmp: tmp.write_text(page, encoding="utf-8")
         write_file_set(writers)
-    except SumoRssError:
+    except BaseException:
         if made:
             figures_dir.rmdir()
         raise
