@@ -37,13 +37,22 @@ _REASONS = {  # what an OSError while writing means for the user
 def output_error(path: Path, exc: OSError) -> OutputError:
     """``exc``, raised while writing ``path``, as a message naming the file (or the file that stands where a
     folder must be) and what is expected."""
-    path = Path(exc.filename) if isinstance(exc.filename, str) and exc.filename else Path(path)
+    path = _final_name(Path(exc.filename) if isinstance(exc.filename, str) and exc.filename else Path(path))
     if exc.errno in (errno.ENOTDIR, errno.EEXIST):
         blocking = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
         if blocking is not None:
             return OutputError(f"{path}: cannot be written: {blocking} is a file (expected a folder there)")
     reason = _REASONS.get(exc.errno, exc.strerror or str(exc))
     return OutputError(f"{path}: cannot be written: {reason}")
+
+
+def _final_name(path: Path) -> Path:
+    """The file a temporary path of :func:`atomic_path` or :func:`write_file_set` is written for (``.x.tmp`` → x;
+    a temporary of a temporary too)."""
+    name = path.name
+    while name.startswith(".") and name.endswith(".tmp") and len(name) > len("..tmp"):
+        name = name[1:-len(".tmp")]
+    return path.with_name(name)
 
 
 def check_output_folder(folder: Path, option: str, files: tuple[str, ...] = ()) -> None:

@@ -5,6 +5,7 @@ damaged run, Ctrl-C while the workers still start prints no traceback, warnings 
 line."""
 from __future__ import annotations
 
+import errno
 import json
 import os
 import resource
@@ -21,6 +22,7 @@ from conftest import NETWORKS, REPO, run_cli, two_scenario_batch
 from sumo_rss.batch.executors import LocalExecutor
 from sumo_rss.batch.orchestrator import run_batch
 from sumo_rss.batch.spec import load_batch
+from sumo_rss.files import output_error
 from sumo_rss.report.summary import read_batch_csv
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
@@ -54,8 +56,18 @@ def test_a_run_whose_fcd_sumo_could_not_write_to_its_end_fails_naming_the_file(t
                    preexec_fn=_file_size_limit(100_000))
     assert proc.returncode == 2, proc.stderr
     line = _one_error_line(proc.stderr)
-    assert "fcd.xml: SUMO's output ends before its end tag </fcd-export>" in line and "file-size limit" in line
+    # named where the run's folder would be (not in the hidden folder it was built in, which is gone)
+    assert f"{out / 'busy' / '1' / 'fcd.xml'}: SUMO's output ends before its end tag </fcd-export>" in line
+    assert "file-size limit" in line
     assert not out.exists()  # a failed run leaves nothing behind
+
+
+def test_a_write_error_names_the_file_written_not_its_temporary():
+    """A full disk while an npz of an audit's file set was written named '.episode_states.npz.tmp'."""
+    for temporary in (".episode_states.npz.tmp", "..episode_states.npz.tmp.tmp"):
+        exc = OSError(errno.ENOSPC, "No space left on device", f"out/{temporary}")
+        assert str(output_error(Path("out") / temporary, exc)) == \
+            "out/episode_states.npz: cannot be written: no space left on its disk (free some, or write elsewhere)"
 
 
 def test_an_audit_that_cannot_write_its_outputs_writes_none_and_names_the_file(two_scenarios, tmp_path):

@@ -226,8 +226,11 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         write_json(work / MANIFEST_FILE, manifest)
         _replace_dir(work, final)
         (final / WRITER_LOCK).unlink(missing_ok=True)  # once renamed: a partial folder without it would look dead
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(work, ignore_errors=True)
+        if isinstance(exc, SumoRssError) and exc.args and isinstance(exc.args[0], str):
+            # the files it names as the run's folder has them (the hidden folder it was built in is gone)
+            exc.args = (exc.args[0].replace(str(work), str(final)), *exc.args[1:])
         for folder in created:  # a failed run leaves no empty folders behind (a batch records its failure)
             try:
                 folder.rmdir()
