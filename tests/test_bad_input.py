@@ -211,6 +211,9 @@ CASES: dict[str, Case] = {
     "out-audit-csv-is-a-folder": Case(lambda folder: audit()(folder) + ["--out", str(
         (folder / "o" / "violations.csv").mkdir(parents=True) or folder / "o")],
         ("--out", "violations.csv is a folder (expected a file there")),
+    "out-audit-npz-is-a-folder": Case(lambda folder: audit()(folder) + ["--out", str(
+        (folder / "o" / "trajectories.npz").mkdir(parents=True) or folder / "o")],
+        ("--out", "trajectories.npz is a folder (expected a file there")),
     "out-train-intent-is-a-file": Case(lambda folder: ["train-intent", "--out", str(write(folder, "o", "x"))], (
         "--out must be a folder", "o is a file")),
     "out-batch-is-a-file": Case(lambda folder: scenario(command="batch")(folder)[:2] + ["--out", str(
