@@ -308,7 +308,8 @@ CASES.update({
                                                                                      "speedLat:")),
     "fcd-angle-1e300": Case(audit(fcd_text(angle="1e300")), ("f.xml", "vehicle 'a'", "angle:")),
     "fcd-signals-overflow": Case(audit(fcd_text(signals="99999999999999999999999")), (
-        "f.xml, time step 0.1 s", "vehicle 'a'", "signals:", "an integer")),
+        "f.xml, time step 0.1 s", "vehicle 'a'", "signals: expected an integer in [0, 2147483647] (SUMO's signal bits)",
+        "got '99999999999999999999999'")),
     "fcd-signals-negative": Case(audit(fcd_text(signals="-1")), ("f.xml", "vehicle 'a'", "signals:", "[0, ")),
     "fcd-5000-digit-x": Case(audit(fcd_text(x="9" * 5000)), ("f.xml", "vehicle 'a'", "x:", "(5002 characters)")),
     "fcd-speed-nan": Case(audit(fcd_text(speed="nan")), ("f.xml", "vehicle 'a'", "speed: expected a finite number")),

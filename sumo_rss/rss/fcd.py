@@ -26,7 +26,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
-from .fcd_checks import StepValues, check_step
+from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
@@ -358,7 +358,7 @@ class FcdReader:
 
         lane_pos, lat_pos = optional("pos"), optional("posLat")
         accel, lat_speed = optional("acceleration"), optional("speedLat")
-        signals = _numbers(rows, "signals", where, integer=True, default="0")
+        signals = _numbers(rows, "signals", where, integer=SIGNALS_FORM, default="0")
         check_step(where, time, self._prev_time, StepValues(ids, lane, x, y, angle, speed, lane_pos, lat_pos, accel,
                                                             lat_speed, signals), self.network)
         if self._resolution is None and rows and not all("speedLat" in r for r in rows):
@@ -505,10 +505,11 @@ def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations, network: RoadNet
     return overlap
 
 
-def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool = False,
+def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: str = "",
              default: str | None = None) -> np.ndarray:
-    """Attribute ``name`` of every vehicle of a time step as finite floats (or integers), ``default`` where a
-    vehicle lacks it (None: required); FcdError naming the vehicle and the value."""
+    """Attribute ``name`` of every vehicle of a time step as finite floats (or, with ``integer``, the expected form
+    of its integers, as integers), ``default`` where a vehicle lacks it (None: required); FcdError naming the
+    vehicle and the value."""
     kind = int if integer else float
     try:
         values = np.array([kind(r.get(name, default)) for r in rows], dtype=kind)  # type: ignore[arg-type]
@@ -521,7 +522,7 @@ def _numbers(rows: list[dict[str, str]], name: str, where: str, *, integer: bool
         raise FcdError(f"{where}: vehicle {shown(bad.get('id', '?'))} lacks the attribute {name!r} "
                        f"({NEEDED_ATTRIBUTES})")
     raise FcdError(f"{where}: vehicle {shown(bad.get('id', '?'))}: {name}: expected "
-                   f"{'an integer (64-bit)' if integer else 'a finite number'}, got {shown(bad[name])}")
+                   f"{integer or 'a finite number'}, got {shown(bad[name])}")
 
 
 def _decimals(text: str) -> int:

@@ -24,6 +24,7 @@ MAX_ANGLE_DEG = 720.0  # SUMO writes angles in [0, 360); anything beyond two tur
 OFF_LANE_M = 10.0  # [m] a front bumper farther than this beyond its lane's edge is not on that lane
 LANE_END_M = 1.0  # [m] how far a lane position may lie before the start or past the end of its lane (rounding)
 MAX_SIGNALS = 2**31 - 1  # SUMO's vehicle signals are bits of a 32-bit integer
+SIGNALS_FORM = f"an integer in [0, {MAX_SIGNALS}] (SUMO's signal bits)"
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ def check_step(where: str, time: float, previous_time: float | None, step: StepV
             f"a number >= 0 (m/s) and at most {MAX_SPEED:g} m/s")
     if step.signals is not None:
         _refuse(where, step.ids, "signals", step.signals, (step.signals >= 0) & (step.signals <= MAX_SIGNALS),
-                f"an integer in [0, {MAX_SIGNALS}] (SUMO's signal bits)")
+                SIGNALS_FORM)
     lane, half_width = step.lane, 0.5 * network.lane_width[step.lane]
     if step.lane_pos is not None:
         length = network.lane_length[lane]
