@@ -387,7 +387,8 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     for path, what in ((args.fcd, "FCD"), (args.net, "network"), *((p, "vType") for p in args.vtypes or ()),
                        (args.collisions, "collision"), (args.tls_states, "signal-state")):
         if path is not None and not path.is_file():
-            raise FcdError(f"{path}: {what} file not found")
+            raise FcdError(f"{path}: {what} file not found" + (" (a folder stands there; expected a file)"
+                                                                  if path.is_dir() else ""))
     network, topology = _read_network(args.net)  # before the vTypes, which SUMO loads on this network
     vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.scenario is not None:

@@ -28,7 +28,8 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
     """The tables of a TOML file (UTF-8, with or without a byte-order mark, as Windows editors save it);
     ScenarioError naming the file if it is missing or not TOML."""
     if not path.is_file():
-        raise ScenarioError(path, "", f"{what} file not found", has_got=False)
+        raise ScenarioError(path, "", f"{what} file not found" + (" (a folder stands there; expected a file)"
+                                                                   if path.is_dir() else ""), has_got=False)
     try:
         text = path.read_text(encoding="utf-8-sig")
         return tomllib.loads(text)

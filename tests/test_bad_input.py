@@ -214,6 +214,13 @@ CASES: dict[str, Case] = {
     "out-audit-npz-is-a-folder": Case(lambda folder: audit()(folder) + ["--out", str(
         (folder / "o" / "trajectories.npz").mkdir(parents=True) or folder / "o")],
         ("--out", "trajectories.npz is a folder (expected a file there")),
+    "audit-fcd-is-a-folder": Case(lambda folder: [str((folder / "fdir").mkdir() or folder / "fdir")
+                                                  if part.endswith("f.xml") else part for part in audit()(folder)],
+                                  ("fdir: FCD file not found (a folder stands there",)),
+    "scenario-is-a-folder": Case(lambda folder: ["run", str((folder / "s.toml").mkdir() or folder / "s.toml")], (
+        "s.toml: scenario file not found (a folder stands there",)),
+    "report-of-a-file": Case(lambda folder: ["report", str(write(folder, "b", "x")), "--quiet"], (
+        "b: is a file (expected a batch folder",)),
     "out-train-intent-is-a-file": Case(lambda folder: ["train-intent", "--out", str(write(folder, "o", "x"))], (
         "--out must be a folder", "o is a file")),
     "out-batch-is-a-file": Case(lambda folder: scenario(command="batch")(folder)[:2] + ["--out", str(

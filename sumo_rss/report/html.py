@@ -29,6 +29,8 @@ def write_report(batch_dir: Path, views: bool = True, progress: bool = False) ->
     the folder as it was."""
     batch_dir = Path(batch_dir)
     path = batch_dir / "batch_summary.csv"
+    if batch_dir.exists() and not batch_dir.is_dir():
+        raise SumoRssError(f"{batch_dir}: is a file (expected a batch folder, as 'sumo-rss batch' writes it)")
     if not path.is_file():
         raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
     summary = _read(batch_dir, "batch_summary")
