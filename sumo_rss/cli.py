@@ -1,12 +1,14 @@
 """The ``sumo-rss`` command line: run, batch, audit, report, view, nets, train-intent.
 
-Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
-``--debug`` shows the traceback instead.
+Bad input (scenario files, options, input files, output folders) prints one line ``sumo-rss: error: ...`` and
+exits with code 2; Ctrl-C exits with code 130; a bug prints one line ``sumo-rss: internal error: ...`` and exits with
+code 70. ``--debug`` shows the traceback instead (docs/outputs.md, "Bad input, full disks and interruptions").
 """
 from __future__ import annotations
 
 import argparse
 import math
+import re
 import signal
 import sys
 import time
@@ -14,13 +16,18 @@ import warnings
 from pathlib import Path
 
 from . import __version__
-from .errors import ScenarioError, SumoRssError
+from .errors import ScenarioError, SumoRssError, shown
 from .rss.params import PRESETS
 from .scenario import CONTROLLERS, MAX_SEED
 from .view.command import add_view_command, run_view
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
+EXIT_BUG = 70  # EX_SOFTWARE: not the input's fault
+# Options whose value may start with '-' ('--seeds -1,2'): argparse would take it for an option and report a missing
+# value instead of what is wrong with the value.
+_VALUE_OPTIONS = frozenset({"--seeds", "--seed", "--duration", "--workers", "--epochs", "--train-seeds",
+                            "--test-seeds"})
 
 _RUN_EXAMPLES = """examples:
   sumo-rss run scenarios/highway_dense.toml
@@ -78,19 +85,19 @@ def _positive_float(text: str) -> float:
     except ValueError:
         value = -1.0
     if not 0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"expected a finite number of seconds > 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a finite number of seconds > 0, got {shown(text)}")
     return value
 
 
 def _positive_int(text: str) -> int:
     if not (text.isascii() and text.isdigit()) or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {shown(text)}")
     return int(text)
 
 
 def _seed(text: str) -> int:
     if not (text.isascii() and text.isdigit()) or int(text) > MAX_SEED:
-        raise argparse.ArgumentTypeError(f"expected an integer in [0, {MAX_SEED}], got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, {MAX_SEED}], got {shown(text)}")
     return int(text)
 
 
@@ -98,15 +105,22 @@ def _file_list(text: str) -> list[Path]:
     """``a.rou.xml,b.add.xml`` → paths (SUMO's comma-separated file lists)."""
     files = [Path(part) for part in text.split(",") if part]
     if not files:
-        raise argparse.ArgumentTypeError(f"expected one or more comma-separated files, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected one or more comma-separated files, got {shown(text)}")
     return files
+
+
+class _Parser(argparse.ArgumentParser):
+    """An option error as one line ``sumo-rss: error: ...`` (argparse prints its usage first), exit code 2."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"sumo-rss: error: {' '.join(message.split())}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
     # --debug is accepted before or after the command; SUPPRESS keeps a sub-command from resetting it.
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks for errors")
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="sumo-rss",
         description="Responsibility-aware traffic simulation: SUMO co-simulation with an RSS auditor.",
         epilog="Run 'sumo-rss COMMAND --help' for the options and examples of a command.")
@@ -248,8 +262,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from .batch.runner import run_directory, run_one
     from .batch.spec import Task, variant_name
+    from .files import check_output_folder
     from .scenario import load_scenario
 
+    check_output_folder(args.out, "--out")
     spec = load_scenario(args.scenario).with_overrides(seed=args.seed, duration_s=args.duration,
                                                        controller=args.controller)
     with tqdm(total=round(spec.duration_s, 3), unit="sim s", disable=args.quiet, file=sys.stderr,
@@ -304,12 +320,16 @@ class _StopRequest:
 def _cmd_batch(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
+    from .batch.aggregate import BATCH_FILES
     from .batch.executors import LocalExecutor, RayExecutor
     from .batch.orchestrator import run_batch
     from .batch.spec import BatchSpec, load_batch
+    from .files import check_output_folder
     from .scenario import load_scenario
     from .validation import read_toml
 
+    out = args.out or Path("results") / args.specs[0].stem
+    check_output_folder(out, "--out" if args.out else f"the batch folder (default for {args.specs[0]})", BATCH_FILES)
     tasks = []
     for path in args.specs:
         try:
@@ -329,7 +349,6 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                                                          ("controller", args.controller)) if values}
         spec = replace(spec, grid={**spec.grid, **swept})  # the command line's sweeps replace the file's
         tasks += spec.tasks()
-    out = args.out or Path("results") / args.specs[0].stem
     executor = RayExecutor(args.ray_address) if args.ray_address else LocalExecutor(args.workers)
     # A scheduler's or timeout's stop: as Ctrl-C, finished runs are kept. Set once the executor is there: ray.init
     # installs a handler of its own (exit code 15).
@@ -345,53 +364,42 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from .report.html import write_report
+    from .files import check_output_folder
+    from .report.html import REPORT_FILES, write_report
 
+    if args.batch_dir.is_dir():  # else write_report says what is missing
+        check_output_folder(args.batch_dir, "the batch folder", REPORT_FILES)
     html = write_report(args.batch_dir, views=args.views, progress=not args.quiet)
     print(f"report: {html}")
     return 0
 
 
 def _cmd_audit(args: argparse.Namespace) -> int:
-    from xml.sax import SAXException
-
     from tqdm import tqdm
 
     from .batch.runner import param_resolver
-    from .road.junctions import JunctionModel
-    from .road.network import RoadNetwork
-    from .rss.auditor import ParamResolver
+    from .files import check_output_folder
+    from .rss.auditor import AUDIT_FILES, ParamResolver
     from .rss.fcd import AuditProgress, FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
     from .view.trajectories import TRAJECTORY_FILE, TrajectoryRecorder
 
-    if not args.fcd.is_file():
-        raise FcdError(f"{args.fcd}: FCD file not found")
-    if not args.net.is_file():
-        raise FcdError(f"{args.net}: network file not found")
+    check_output_folder(args.out, "--out", (*AUDIT_FILES, TRAJECTORY_FILE))  # before the work, not after a long audit
+    for path, what in ((args.fcd, "FCD"), (args.net, "network"), *((p, "vType") for p in args.vtypes or ()),
+                       (args.collisions, "collision"), (args.tls_states, "signal-state")):
+        if path is not None and not path.is_file():
+            raise FcdError(f"{path}: {what} file not found" + (" (a folder stands there; expected a file)"
+                                                                  if path.is_dir() else ""))
     # Where the time goes before the first step (a city network's first load takes seconds), on a terminal only: an
     # error stays the one line on stderr that scripts read.
     shown = not args.quiet and sys.stderr.isatty()
     say = (lambda text: print(f"audit: {text}", file=sys.stderr, flush=True)) if shown else (lambda _: None)
     say(f"loading the network {args.net} ...")
     started = time.perf_counter()
-    try:  # before the vTypes, which SUMO loads on this network
-        network = RoadNetwork.from_file(args.net)
-        junctions = JunctionModel.from_file(args.net, network)  # built once, for the auditor
-    except ValueError as exc:  # it names the file
-        raise FcdError(str(exc)) from None
-    except SAXException as exc:
-        raise FcdError(f"{args.net}: not a SUMO network ({exc})") from None
+    network, topology, junctions = _read_network(args.net)  # before the vTypes, which SUMO loads on this network
     say(f"network of {len(network.edge_ids)} edges, {len(junctions.links)} junction links and "
         f"{len(junctions.conflicts)} conflict areas ready in {time.perf_counter() - started:.1f} s")
-    for path in args.vtypes or ():
-        if not path.is_file():
-            raise FcdError(f"{path}: vType file not found")
     vehicles = read_vehicle_info(args.vtypes, args.net)
-    if args.collisions and not args.collisions.is_file():
-        raise FcdError(f"{args.collisions}: collision file not found")
-    if args.tls_states and not args.tls_states.is_file():
-        raise FcdError(f"{args.tls_states}: signal-state file not found")
     if args.scenario is not None:
         if args.rss_preset or args.hold_standing or args.no_signal_rule:
             raise SumoRssError("--scenario sets the RSS parameters: leave out --rss-preset, --hold-standing and "
@@ -423,12 +431,33 @@ def _cmd_audit(args: argparse.Namespace) -> int:
                            record_states=True, on_snapshot=recorder.add)
         if not stop.requested:
             bar.update(bar.total - bar.n)  # read to its end
-    result.to_csv(args.out)
-    recorder.write(args.out / TRAJECTORY_FILE)
+    result.to_csv(args.out, also={TRAJECTORY_FILE: recorder.write})
+    signals = "" if args.tls_states or not topology.signals else \
+        f" (the states of the network's {len(topology.signals)} signals from its own programs: no --tls-states)"
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
-          f"violations, {len(result.collisions)} collisions -> {args.out} ({done[0].steps} steps, "
+          f"violations, {len(result.collisions)} collisions{signals} -> {args.out} ({done[0].steps} steps, "
           f"{done[0].pair_steps} pair-steps, audited in {time.perf_counter() - begun:.1f} s)")
     return EXIT_INTERRUPTED if stop.requested else 0
+
+
+def _read_network(path: Path):
+    """The road model, the topology index and the junction model of ``path`` (built once: the auditor takes it from
+    the road model cache); FcdError naming the file, element and attribute where it is not a SUMO network the road
+    model can use (:mod:`sumo_rss.road.net_check`)."""
+    from .road.junctions import JunctionModel
+    from .road.network import RoadNetwork
+    from .road.topology import read_topology
+    from .rss.fcd import FcdError
+
+    try:
+        topology = read_topology(path)
+    except ValueError as exc:  # it names the file
+        raise FcdError(str(exc)) from None
+    try:
+        network = RoadNetwork.from_file(path)
+        return network, topology, JunctionModel.from_file(path, network)
+    except (KeyError, IndexError, ValueError, TypeError, AttributeError) as exc:  # what sumolib raises on the rest
+        raise FcdError(f"{path}: not a SUMO network the road model can use ({type(exc).__name__}: {exc})") from None
 
 
 def _cmd_nets(args: argparse.Namespace) -> int:
@@ -465,8 +494,11 @@ def _cmd_nets(args: argparse.Namespace) -> int:
 
 
 def _cmd_train_intent(args: argparse.Namespace) -> int:
+    from .files import check_output_folder
     from .planner.intention.pipeline import DEFAULT_SCENARIOS, DataPlan, summary_lines, train_intent
     from .planner.intention.train import TrainSettings
+
+    check_output_folder(args.out, "--out")
 
     shipped = Path(__file__).resolve().parent.parent / "scenarios"
     paths = args.scenarios or [shipped / f"{name}.toml" for name in DEFAULT_SCENARIOS]
@@ -484,12 +516,39 @@ def _cmd_train_intent(args: argparse.Namespace) -> int:
 
 
 def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
-    """Warnings as one line (``--debug`` shows Python's form, with the code that warned)."""
-    print(f"sumo-rss: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    """Warnings as one line of their own, also while a progress bar is shown (``--debug`` shows Python's form, with
+    the code that warned)."""
+    from tqdm import tqdm
+
+    tqdm.write(f"sumo-rss: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--seeds -1,2`` as ``--seeds=-1,2``, so that the option's own check says what is wrong with the value."""
+    joined: list[str] = []
+    for token in argv:
+        if joined and joined[-1] in _VALUE_OPTIONS and re.match(r"-[\d.,:]", token):
+            joined[-1] = f"{joined[-1]}={token}"
+        else:
+            joined.append(token)
+    return joined
+
+
+def _one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line; an OSError with the file it is about (``[Errno 2] No such file or
+    directory: 'x'`` as ``x: No such file or directory``)."""
+    if isinstance(exc, OSError) and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    else:
+        text = str(exc)
+    return " ".join(text.split())
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(_join_negative_values(sys.argv[1:] if argv is None else list(argv)))
+    except SystemExit as exc:  # --help, --version, or an option error (printed)
+        return int(exc.code or 0)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
                "view": run_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
@@ -500,11 +559,17 @@ def main(argv: list[str] | None = None) -> int:
     except (SumoRssError, OSError) as exc:  # OSError: a path that cannot be read or written (it names the file)
         if args.debug:
             raise
-        print(f"sumo-rss: error: {exc}", file=sys.stderr)
+        print(f"sumo-rss: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("sumo-rss: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception as exc:  # a bug, not bad input: one line, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"sumo-rss: internal error: {type(exc).__name__}: {_one_line(exc)} (a bug, not your input: please "
+              "report it with the output of the same command with --debug)", file=sys.stderr)
+        return EXIT_BUG
 
 
 if __name__ == "__main__":  # ``python -m sumo_rss.cli``, as ``python -m sumo_rss``

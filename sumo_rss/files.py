@@ -1,18 +1,85 @@
-"""Atomic writes (temp file in the same folder + rename): a reader sees the old file or the whole new one."""
+"""Atomic writes (temp file in the same folder + rename): a reader sees the old file or the whole new one.
+
+Writing errors (disk full, file too large, a file where a folder must be, not writable) are raised as
+:class:`~sumo_rss.errors.OutputError` naming the file and what is expected, never as a bare ``[Errno 28]``.
+"""
 from __future__ import annotations
 
+import errno
 import io
 import json
 import os
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .errors import OutputError
+
 CSV_FLOAT_FORMAT = "%.6f"  # every CSV the project writes: 6 decimals, so the same run gives the same bytes
+SANE_MAGNITUDE = 1e10  # no number written into a CSV is larger (positions are at most 1e8 m, times 1e9 s)
+_REASONS = {  # what an OSError while writing means for the user
+    errno.ENOSPC: "no space left on its disk (free some, or write elsewhere)",
+    errno.EDQUOT: "the disk quota is exhausted (free some space, or write elsewhere)",
+    errno.EFBIG: "the file grew beyond the file-size limit of this process (ulimit -f)",
+    errno.EACCES: "permission denied (expected a folder this user may write to)",
+    errno.EPERM: "operation not permitted (expected a folder this user may write to)",
+    errno.EROFS: "its file system is read-only",
+    errno.EISDIR: "a folder stands there (expected a file, or nothing)",
+    errno.ENAMETOOLONG: "the file name is too long",
+    errno.EIO: "an input/output error of its disk",
+}
+
+
+def output_error(path: Path, exc: OSError) -> OutputError:
+    """``exc``, raised while writing ``path``, as a message naming the file (or the file that stands where a
+    folder must be) and what is expected."""
+    path = _final_name(Path(exc.filename) if isinstance(exc.filename, str) and exc.filename else Path(path))
+    if exc.errno in (errno.ENOTDIR, errno.EEXIST):
+        blocking = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), None)
+        if blocking is not None:
+            return OutputError(f"{path}: cannot be written: {blocking} is a file (expected a folder there)")
+    reason = _REASONS.get(exc.errno, exc.strerror or str(exc))
+    return OutputError(f"{path}: cannot be written: {reason}")
+
+
+def _final_name(path: Path) -> Path:
+    """The file a temporary path of :func:`atomic_path` or :func:`write_file_set` is written for (``.x.tmp`` → x;
+    a temporary of a temporary too)."""
+    name = path.name
+    while name.startswith(".") and name.endswith(".tmp") and len(name) > len("..tmp"):
+        name = name[1:-len(".tmp")]
+    return path.with_name(name)
+
+
+def check_output_folder(folder: Path, option: str, files: tuple[str, ...] = ()) -> None:
+    """Before the work starts: that ``folder`` (given as ``option``, e.g. '--out') is a folder or can be created
+    as one, that it may be written to, and that none of the ``files`` to be written into it is a folder.
+    OutputError naming the option and what is expected otherwise; nothing is created."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{option} must be a folder; {folder} is a file")
+    existing = next((p for p in (folder, *folder.parents) if p.exists()), Path("."))
+    if not existing.is_dir():
+        raise OutputError(f"{option} {folder}: {existing} is a file (expected a folder there)")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {folder}: {existing} is not writable (expected a folder this user may write "
+                          "to)")
+    for name in files:
+        if (folder / name).is_dir():
+            raise OutputError(f"{option} {folder}: {folder / name} is a folder (expected a file there, or nothing: "
+                              f"the results are written as {name})")
+
+
+def make_folder(folder: Path) -> None:
+    """``folder`` and its parents, as needed; OutputError naming what is in the way."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise output_error(folder, exc) from None
 
 
 @contextmanager
@@ -20,10 +87,36 @@ def atomic_path(path: Path) -> Iterator[Path]:
     """A temporary path next to ``path`` to write to; renamed onto ``path`` when the block ends without error."""
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        yield tmp
-        os.replace(tmp, path)
+        try:
+            yield tmp
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise output_error(path, exc) from exc
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def write_file_set(writers: Mapping[Path, Callable[[Path], None]]) -> None:
+    """Write several files as a set: each writer writes its file's temporary path; only when every one has
+    succeeded are they renamed into place, so a failure (disk full, a folder in the way) leaves every file as it
+    was: none of the new ones, no temporary files."""
+    temporaries = {path: path.with_name(f".{path.name}.tmp") for path in writers}
+    try:
+        for path, tmp in temporaries.items():
+            if path.is_dir():
+                raise OutputError(f"{path}: cannot be written: a folder stands there (expected a file, or nothing)")
+            try:
+                writers[path](tmp)
+            except OSError as exc:
+                raise output_error(path, exc) from exc
+        for path, tmp in temporaries.items():
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise output_error(path, exc) from exc
+    finally:
+        for tmp in temporaries.values():
+            tmp.unlink(missing_ok=True)
 
 
 def write_text(path: Path, text: str) -> None:
@@ -31,9 +124,14 @@ def write_text(path: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8")
 
 
-def write_json(path: Path, data: object) -> None:
+def json_text(data: object) -> str:
     """``data`` as indented JSON with sorted keys (numpy scalars and arrays as their Python values)."""
-    write_text(path, json.dumps(data, indent=2, sort_keys=True, default=_plain) + "\n")
+    return json.dumps(data, indent=2, sort_keys=True, default=_plain) + "\n"
+
+
+def write_json(path: Path, data: object) -> None:
+    """``data`` as :func:`json_text`."""
+    write_text(path, json_text(data))
 
 
 def read_json_object(path: Path) -> dict | None:
@@ -51,10 +149,26 @@ def _plain(value: object) -> object:
     raise TypeError(f"expected JSON data, got {type(value).__name__}: {value!r}")
 
 
+def csv_writer(frame: pd.DataFrame) -> Callable[[Path], None]:
+    """A function writing ``frame`` to a path without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends;
+    ValueError instead where a number is infinite or beyond SANE_MAGNITUDE (the inputs are checked so that none
+    is: one that got through is a bug, and no absurd number is ever written into a CSV)."""
+    def write(path: Path) -> None:
+        numbers = frame.select_dtypes(include="number")
+        absurd = ~(numbers.abs() <= SANE_MAGNITUDE) & numbers.notna()
+        if absurd.to_numpy().any():
+            column = absurd.any().idxmax()
+            row = int(absurd[column].to_numpy().argmax())
+            raise ValueError(f"{path.with_name(path.name.removeprefix('.').removesuffix('.tmp'))}: not written: line "
+                             f"{row + 2}, column {column!r} would be {float(numbers[column].iloc[row]):g}")
+        frame.to_csv(path, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+    return write
+
+
 def write_csv(frame: pd.DataFrame, path: Path) -> None:
-    """``frame`` without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends."""
+    """``frame`` as :func:`csv_writer` writes it, atomically."""
     with atomic_path(path) as tmp:
-        frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+        csv_writer(frame)(tmp)
 
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:

@@ -19,6 +19,7 @@ from .road.topology import NetTopology, read_topology
 from .rss.params import PRESETS
 from .scenario_routes import check_depart_speed, check_route_permits, read_depart_lane, read_route
 from .scenario_rss import RssSpec, read_rss
+from .scenario_sumo import SumoSpec, read_input_files, read_sumo
 from .sumo_home import vtype_attribute_names
 from .validation import TableReader, one_of, read_toml
 
@@ -90,6 +91,7 @@ class FlowSpec:
 class DemandSpec:
     vtypes: tuple[VehicleTypeSpec, ...]
     flows: tuple[FlowSpec, ...]
+    route_files: tuple[Path, ...] = ()  # absolute: SUMO route files of the user's own, loaded before the flows
 
 
 @dataclass(frozen=True)
@@ -119,14 +121,6 @@ class EgoSpec:
     controller: str
     vehicle: VehicleTypeSpec
     planner: PlannerOverrides
-
-
-@dataclass(frozen=True)
-class SumoSpec:
-    lanechange_duration_s: float = 3.0
-    time_to_teleport_s: float = 300.0  # 0 disables teleporting
-    collision_mingap_factor: float = 0.0  # 0: a collision is a physical overlap
-    extra_args: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -208,6 +202,12 @@ class ScenarioSpec:
                     "vtypes": dict(self.rss.vtype_overrides)},
             "outputs": _plain(asdict(self.outputs)),
         }
+        # SUMO files of the user's own, as absolute paths (left out where there are none: the hash of a scenario
+        # without them is what it was before they could be given)
+        if self.demand.route_files:
+            data["demand"]["route_files"] = _plain(self.demand.route_files)
+        if not self.sumo.additional_files:
+            del data["sumo"]["additional_files"]
         if self.ego is not None:
             ego = _plain(asdict(self.ego))
             ego.update(depart_lane=lane(self.ego.depart_lane), vehicle=vtype(self.ego.vehicle, probability=False))
@@ -264,8 +264,8 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
     if not _whole_steps(duration, step):
         raise top.error("duration_s", _steps_expected(duration, step), duration)
     seed = top.integer("seed", 0, min=0, max=MAX_SEED)
-    sumo = _read_sumo(top.table("sumo"))
-    demand = _read_demand(top.table("demand"), topology, duration)
+    sumo = read_sumo(top.table("sumo"), path)
+    demand = _read_demand(top.table("demand"), topology, duration, path)
     ego = _read_ego(top.table("ego"), topology, duration) if top.has("ego") else None
     if ego is not None:
         if ego.id in {f.id for f in demand.flows}:
@@ -285,11 +285,12 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
 
 def _read_network(top: TableReader, path: Path) -> tuple[str, Path]:
     value = top.string("network")
-    if value.endswith(".net.xml"):
+    suffix = next((end for end in (".net.xml", ".net.xml.gz") if value.endswith(end)), None)
+    if suffix is not None:
         net_file = (path.parent / value).resolve()
         if not net_file.is_file():
-            raise top.error("network", f"expected an existing .net.xml file (looked for {net_file})", value)
-        return net_file.name[: -len(".net.xml")], net_file
+            raise top.error("network", f"expected an existing {suffix} file (looked for {net_file})", value)
+        return net_file.name[: -len(suffix)], net_file
     net_file = networks_root() / value / f"{value}.net.xml"
     if not net_file.is_file():
         names = ", ".join(available_networks()) or f"none found under {networks_root()}"
@@ -302,21 +303,6 @@ def _topology(top: TableReader, net_file: Path) -> NetTopology:
         return read_topology(net_file)
     except ValueError as exc:
         raise top.error("network", str(exc)) from exc
-
-
-def _read_sumo(t: TableReader) -> SumoSpec:
-    spec = SumoSpec(
-        lanechange_duration_s=t.number("lanechange_duration_s", 3.0, min=0.0, max=20.0, min_exclusive=True),
-        time_to_teleport_s=t.number("time_to_teleport_s", 300.0, min=0.0),
-        collision_mingap_factor=t.number("collision_mingap_factor", 0.0, min=0.0, max=1.0),
-        extra_args=t.string_list("extra_args", [], min_len=0),
-    )
-    for i, arg in enumerate(spec.extra_args):
-        if arg.split("=", 1)[0] == "--random":  # SUMO's own seed from the clock
-            raise t.error(f"extra_args[{i}]", "expected no --random: the scenario's seed makes a run repeatable "
-                                             "(the same scenario and seed give byte-identical outputs)", arg)
-    t.finish()
-    return spec
 
 
 def _sumo_id(t: TableReader, key: str, value: str) -> str:
@@ -374,7 +360,7 @@ def _model_params(t: TableReader, key: str, *, lane_change: bool) -> dict[str, f
     return params
 
 
-def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> DemandSpec:
+def _read_demand(t: TableReader, topology: NetTopology, duration: float, path: Path) -> DemandSpec:
     vtypes = tuple(_read_vtype(r, _sumo_id(t, f"vtypes.{name}", name), with_probability=True)
                    for name, r in t.named_tables("vtypes").items())
     if not vtypes:
@@ -423,8 +409,9 @@ def _read_demand(t: TableReader, topology: NetTopology, duration: float) -> Dema
     if drawing and not any(v.probability > 0 for v in vtypes):  # 0: only for flows that name the vType
         raise t.error("vtypes", f"expected a vType with probability > 0 for the flows that draw from the mix "
                                 f"({', '.join(drawing)})", {v.id: v.probability for v in vtypes})
+    route_files = read_input_files(t, "route_files", path)
     t.finish()
-    return DemandSpec(vtypes, tuple(flows))
+    return DemandSpec(vtypes, tuple(flows), route_files)
 
 
 def _read_planner(t: TableReader) -> PlannerOverrides:

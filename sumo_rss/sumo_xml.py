@@ -5,12 +5,14 @@ from __future__ import annotations
 import gzip
 import warnings
 import xml.etree.ElementTree as ET
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 from xml.parsers import expat
 
-MALFORMED = (ET.ParseError, EOFError, gzip.BadGzipFile)  # what reading a damaged (or cut) output raises
+# What reading a damaged (or cut) output raises; zlib.error: a gzipped file whose compressed stream is damaged.
+MALFORMED = (ET.ParseError, EOFError, gzip.BadGzipFile, zlib.error)
 # What expat reports when the input ends before the document does (it asks for more bytes than the file has).
 _CUT_CODES = frozenset(expat.errors.codes[message] for message in (
     expat.errors.XML_ERROR_NO_ELEMENTS, expat.errors.XML_ERROR_UNCLOSED_TOKEN, expat.errors.XML_ERROR_PARTIAL_CHAR,
@@ -20,6 +22,23 @@ _CUT_CODES = frozenset(expat.errors.codes[message] for message in (
 def open_output(path: Path) -> IO[bytes]:
     """``path`` opened for reading, through gzip for a ``.gz`` name."""
     return gzip.open(path, "rb") if Path(path).suffix == ".gz" else open(path, "rb")
+
+
+def root_tag(path: Path) -> str:
+    """The tag of the root element of the XML file ``path`` (gzipped for a ``.gz`` name), read without the rest;
+    one of MALFORMED where the file is not XML up to there."""
+    with open_output(path) as source:
+        _, root = next(ET.iterparse(source, events=("start",)))
+        return root.tag
+
+
+def ends_with_end_tag(path: Path, root_tag: str) -> bool:
+    """Whether the (plain) XML file ``path`` ends with its root's end tag ``</root_tag>``, as a SUMO output that was
+    closed (SUMO writes it last; a file cut by a full disk or a file-size limit does not have it)."""
+    with open(path, "rb") as fh:
+        fh.seek(0, 2)
+        fh.seek(max(0, fh.tell() - len(root_tag) - 64))
+        return fh.read().rstrip().endswith(f"</{root_tag}>".encode())
 
 
 def bytes_consumed(source: IO[bytes]) -> int:

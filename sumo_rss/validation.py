@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -27,13 +28,33 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
     """The tables of a TOML file (UTF-8, with or without a byte-order mark, as Windows editors save it);
     ScenarioError naming the file if it is missing or not TOML."""
     if not path.is_file():
-        raise ScenarioError(path, "", f"{what} file not found", has_got=False)
+        raise ScenarioError(path, "", f"{what} file not found" + (" (a folder stands there; expected a file)"
+                                                                   if path.is_dir() else ""), has_got=False)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8-sig"))
+        text = path.read_text(encoding="utf-8-sig")
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(path, "", f"not valid TOML ({exc})", has_got=False) from exc
     except UnicodeDecodeError as exc:
         raise ScenarioError(path, "", "not a UTF-8 text file", has_got=False) from exc
+    except ValueError as exc:  # an integer of more than 4300 digits, which Python refuses to convert
+        raise _long_integer_error(path, text) from exc
+
+
+_LONG_INTEGER = re.compile(r"^\s*([^=#]*?)\s*=\s*[-+]?\d[\d_]{" + str(sys.get_int_max_str_digits()) + r",}")
+
+
+def _long_integer_error(path: Path, text: str) -> ScenarioError:
+    """The error for the integer of ``text`` longer than Python converts, naming its line and key."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        found = _LONG_INTEGER.match(line)
+        if found:
+            digits = sum(c.isdigit() for c in line[found.end(1):])
+            return ScenarioError(path, f"line {number}: {found.group(1).strip() or '<value>'}",
+                                 f"expected a number of at most {sys.get_int_max_str_digits()} digits, got one of "
+                                 f"{digits} digits", has_got=False)
+    return ScenarioError(path, "", f"expected integers of at most {sys.get_int_max_str_digits()} digits",
+                         has_got=False)
 
 
 class TableReader:

@@ -81,6 +81,18 @@ def write_scenario(folder: Path, data: dict, name: str = "scenario.toml") -> Pat
     return path
 
 
+def two_scenario_batch(folder: Path, data: dict, duration_s: float, seeds: str) -> Path:
+    """Two highway scenarios of ``duration_s`` in ``folder``, light.toml (``data``'s demand) and busy.toml (3000
+    veh/h), and batch.toml over ``seeds`` (TOML, e.g. "[0, 1]"); returns ``folder``."""
+    data = copy.deepcopy(data)
+    data["duration_s"] = duration_s
+    write_scenario(folder, data, "light.toml")
+    data["demand"]["flows"][0]["veh_per_hour"] = 3000
+    write_scenario(folder, data, "busy.toml")
+    (folder / "batch.toml").write_text(f'[batch]\nscenarios = ["light.toml", "busy.toml"]\nseeds = {seeds}\n')
+    return folder
+
+
 def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test", routes: bool = True):
     """Co-simulate ``spec`` for ``seconds``, calling ``setup()`` once and ``control(time)`` before every step
     (libsumo commands), and audit every step; returns the AuditResult. ``routes=False`` audits the snapshots

@@ -67,7 +67,7 @@ def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypat
     assert not (run / "planner.json").exists()  # the example has no summary()
     # The run records its controller: its hash is not the scenario's own, so a batch never adopts it, and its
     # scenario.toml says it alone does not reproduce the run (and still loads).
-    from sumo_rss.batch.orchestrator import _finished
+    from sumo_rss.batch.orchestrator import _unfinished
     from sumo_rss.batch.spec import Task
     from sumo_rss.scenario import load_scenario
 
@@ -76,7 +76,7 @@ def test_the_custom_controller_example_runs_and_writes_a_run(tmp_path, monkeypat
     spec = namespace["spec"]
     custom = Task(spec, "controller=custom")
     assert manifest["parameter_hash"] == custom.parameter_hash("builtins.RssFollower") != custom.parameter_hash()
-    assert not _finished(tmp_path, custom)
+    assert _unfinished(tmp_path, custom) == f"{run}: made from other scenario parameters"
     assert (run / "scenario.toml").read_text().startswith("# The ego was driven by the Python controller")
     assert load_scenario(run / "scenario.toml").to_toml_data() == spec.to_toml_data()
 

@@ -75,7 +75,7 @@ def test_auditing_a_killed_runs_outputs_equals_auditing_them_closed_at_the_cut(d
     text = (dense_run / "fcd.xml").read_text()
     offset, last = _cut_points(text)["inside a vehicle"]
     kept = text[:text.index("</timestep>", text.index(f'<timestep time="{last}"')) + len("</timestep>\n")]
-    collisions = ('<collisions>\n    <collision time="1.00" collider="x" victim="y" type="collision"/>\n')
+    collisions = ('<collisions>\n    <collision time="1.00" collider="main.0" victim="main.1" type="collision"/>\n')
     (tmp_path / "cut.xml").write_text(text[:offset])
     (tmp_path / "cut_collisions.xml").write_text(collisions + '    <collision time="1')
     (tmp_path / "closed.xml").write_text(kept + "</fcd-export>\n")

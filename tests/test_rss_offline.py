@@ -187,9 +187,9 @@ def test_wrong_network_and_bad_files_give_one_line_errors(dense_run, tmp_path):
     assert proc.returncode == 2 and "nope.xml: FCD file not found" in proc.stderr
     # A route file or a non-XML file given as the network is named as the network, not as a vType problem.
     (tmp_path / "junk.xml").write_text("hello")
-    for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: expected a SUMO network (root element "
-                                                         "<net>), found <routes>"),
-                         (tmp_path / "junk.xml", "junk.xml: not a SUMO network (")):
+    for net, message in ((dense_run / "routes.rou.xml", "routes.rou.xml: not a SUMO network (root element <routes>, "
+                                                         "expected <net>)"),
+                         (tmp_path / "junk.xml", "junk.xml: not a readable SUMO network (")):
         proc = run_cli("audit", str(dense_run / "fcd.xml"), "--net", str(net), "--vtypes",
                        str(dense_run / "routes.rou.xml"))
         assert proc.returncode == 2 and message in proc.stderr and "vType" not in proc.stderr, proc.stderr
@@ -213,10 +213,10 @@ def _fcd_vehicle(vid: str, at: float, **changed: str | None) -> str:
 @pytest.mark.parametrize("changed, message", [
     ({"x": "nan"}, "vehicle 'a': x: expected a finite number, got 'nan'"),
     ({"speed": "inf"}, "vehicle 'a': speed: expected a finite number, got 'inf'"),
-    ({"speed": "-5"}, "vehicle 'a': speed: expected a number >= 0 (m/s), got '-5'"),
+    ({"speed": "-5"}, "vehicle 'a': speed: expected a number >= 0 (m/s) and at most 200 m/s, got -5"),
     ({"pos": "abc10"}, "vehicle 'a': pos: expected a finite number, got 'abc10'"),
     ({"acceleration": "x0"}, "vehicle 'a': acceleration: expected a finite number, got 'x0'"),
-    ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer, got '0.0'"),
+    ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer (64-bit), got '0.0'"),
     ({"id": "b"}, "vehicle 'b' is listed more than once"),
     ({"lane": None}, "vehicle 'a' lacks the attribute 'lane' (needed: id, x, y, angle, speed, lane; SUMO writes them "
                      "by default, and with --fcd-output.attributes they must be listed)"),
@@ -351,7 +351,7 @@ def test_sumo_signal_state_output_gives_the_online_states_and_csvs(tmp_path):
     additional.write_text(f'<additional><timedEvent type="SaveTLSStates" dest="{states_file}"/></additional>\n')
     data = tomllib.loads((SCENARIOS / "intersection_tls.toml").read_text(encoding="utf-8"))
     data["network"] = "intersection_tls"
-    data["sumo"] = {**data.get("sumo", {}), "extra_args": ["--additional-files", str(additional)]}
+    data["sumo"] = {**data.get("sumo", {}), "additional_files": [additional.name]}  # relative to the scenario file
     scenario = write_scenario(tmp_path, data, "intersection_tls.toml")
     proc = run_cli("run", str(scenario), "--duration", "120", "--out", str(tmp_path / "online"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
@@ -441,7 +441,8 @@ def test_instantaneous_lane_changes_are_named_once(dense_run, tmp_path):
                     str(dense_run / "routes.rou.xml"), "--step-length", "0.1", "--end", "60", "--no-step-log", "true",
                     "--no-warnings", "true", "--fcd-output", str(tmp_path / "jumps.xml")], check=True,
                    capture_output=True)
-    with pytest.warns(UserWarning, match=r"jumps\.xml: .* moves 3\.\d+ m sideways in one 0\.1 s step") as caught:
+    with pytest.warns(UserWarning, match=r"jumps\.xml: .* moves 3\.\d+ m sideways onto another lane in one 0\.1 s "
+                                         r"step") as caught:
         list(FcdReader(tmp_path / "jumps.xml", network, vehicles))
     assert len([w for w in caught if "sideways" in str(w.message)]) == 1
     # SUMO writes speedLat 0 at such a lane change; without speedLat in the FCD the derived lateral speed is 0 there

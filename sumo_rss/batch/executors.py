@@ -1,30 +1,34 @@
 """Where batch tasks run: local processes (default) or a Ray cluster.
 
 Both run :func:`execute` per task, which writes the run directory (or ``<run>.failed/failed.json`` with the
-traceback) and never raises. The local executor starts one spawned process per task, at most ``workers`` at a
-time: libsumo is a process-wide singleton, and a task that crashes SUMO takes down only its own process. Each
-child dies with its parent (Linux ``PR_SET_PDEATHSIG``), so a killed batch leaves no orphan simulations.
+traceback) and never raises: a run whose failure record cannot be written either (its folder is not writable, the
+disk is full) still ends as a failed outcome with both reasons, and the batch goes on. The local executor starts one
+spawned process per task, at most ``workers`` at a time: libsumo is a process-wide singleton, and a task that crashes
+SUMO takes down only its own process. Each child dies with its parent (Linux ``PR_SET_PDEATHSIG``), so a killed
+batch leaves no orphan simulations, and is started with Ctrl-C ignored (a worker still importing printed a
+``KeyboardInterrupt`` traceback; the batch stops its workers itself).
 """
 from __future__ import annotations
 
 import ctypes
-import json
 import multiprocessing as mp
 import os
+import pickle
 import shutil
 import signal
 import socket
 import sys
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing.connection import wait
+from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
 from ..errors import SumoRssError
-from ..files import write_json
+from ..files import make_folder, read_json_object, write_json
 from .runner import SUMMARY_FILE, run_directory, run_one
 from .spec import Task
 
@@ -45,11 +49,28 @@ def failure_directory(out_dir: Path, task: Task) -> Path:
 
 
 def record_failure(out_dir: Path, task: Task, error: str, trace: str) -> Outcome:
+    """Write the task's ``<run>.failed/failed.json``; where that fails too, the outcome's error says so (it is what
+    the batch summary shows for the run)."""
     folder = failure_directory(out_dir, task)
-    folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / FAILED_FILE, {"run_id": task.run_id, "scenario": task.spec.name, "variant": task.variant,
-                                      "seed": task.spec.seed, "error": error, "traceback": trace})
+    try:
+        make_folder(folder)
+        write_json(folder / FAILED_FILE, {"run_id": task.run_id, "scenario": task.spec.name, "variant": task.variant,
+                                          "seed": task.spec.seed, "error": error, "traceback": trace})
+    except (OSError, SumoRssError) as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        _remove_empty_folders(folder.parent, Path(out_dir))
+        return Outcome(task.run_id, "failed", f"{error}; its failure record could not be written either: {exc}")
     return Outcome(task.run_id, "failed", error)
+
+
+def _remove_empty_folders(folder: Path, top: Path) -> None:
+    """``folder`` and its parents up to (not including) ``top`` where they are empty."""
+    while folder != top and top in folder.parents:
+        try:
+            folder.rmdir()
+        except OSError:  # not empty, or gone
+            return
+        folder = folder.parent
 
 
 def execute(task: Task, out_dir: str | Path) -> Outcome:
@@ -73,14 +94,30 @@ def _die_with_parent(parent: int) -> None:
         raise SystemExit(1)
 
 
-def _child(task: Task, out_dir: str, started: Any, parent: int) -> None:
-    # Ctrl-C reaches the whole process group: the batch stops its workers (each printed a KeyboardInterrupt
-    # traceback when it stopped itself).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _child(task: Task, out_dir: str, started: Any, parent: int, report: Connection) -> None:
+    # Ctrl-C reaches the whole process group: the batch stops its workers. The process was started with Ctrl-C
+    # ignored and blocked (_ctrl_c_ignored); ignored it stays, and its own processes (SUMO) get it unblocked.
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _die_with_parent(parent)
     started.set()
     outcome = execute(task, out_dir)
+    report.send(outcome)  # the error also where its failure record could not be written
     raise SystemExit(0 if outcome.status == "ok" else 1)
+
+
+@contextmanager
+def _ctrl_c_ignored() -> Iterator[None]:
+    """Processes started in the block begin with Ctrl-C ignored: Python keeps an ignored SIGINT ignored, so a
+    worker still importing the modules does not stop with a KeyboardInterrupt traceback. Ctrl-C is blocked first, so
+    one that arrives meanwhile waits for this process's own handler (Linux keeps an ignored signal pending while it
+    is blocked)."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 class LocalExecutor:
@@ -94,34 +131,42 @@ class LocalExecutor:
     def run(self, tasks: list[Task], out_dir: Path, on_result: Callable[[Outcome], None]) -> None:
         ctx = mp.get_context("spawn")
         pending = deque(tasks)
-        running: dict[object, tuple[mp.process.BaseProcess, Task, Any]] = {}
+        running: dict[object, tuple[mp.process.BaseProcess, Task, Any, Connection]] = {}
         try:
             while pending or running:
                 while pending and len(running) < self.workers:
                     task = pending.popleft()
                     started = ctx.Event()  # set once the worker runs our code (after importing __main__)
-                    proc = ctx.Process(target=_child, args=(task, str(out_dir), started, os.getpid()),
+                    receive, send = ctx.Pipe(duplex=False)
+                    proc = ctx.Process(target=_child, args=(task, str(out_dir), started, os.getpid(), send),
                                        name=task.run_id)
-                    proc.start()
-                    running[proc.sentinel] = (proc, task, started)
+                    with _ctrl_c_ignored():
+                        proc.start()
+                    send.close()
+                    running[proc.sentinel] = (proc, task, started, receive)
                 for sentinel in wait(list(running)):
-                    proc, task, started = running.pop(sentinel)
+                    proc, task, started, receive = running.pop(sentinel)
                     proc.join()
-                    on_result(self._outcome(proc, task, out_dir, started.is_set()))
+                    reported = _received(receive)
+                    on_result(self._outcome(proc, task, out_dir, started.is_set(), reported))
         except BaseException:
-            for proc, _, _ in running.values():
+            for proc, _, _, _ in running.values():
                 proc.kill()
-            for proc, _, _ in running.values():
+            for proc, _, _, _ in running.values():
                 proc.join()
             raise
 
     @staticmethod
-    def _outcome(proc: mp.process.BaseProcess, task: Task, out_dir: Path, started: bool) -> Outcome:
+    def _outcome(proc: mp.process.BaseProcess, task: Task, out_dir: Path, started: bool,
+                 reported: Outcome | None = None) -> Outcome:
+        """The outcome the worker reported, or what its exit and its files tell (a worker that died)."""
+        if reported is not None and proc.exitcode in (0, 1):
+            return reported
         if (run_directory(out_dir, task) / SUMMARY_FILE).is_file() and proc.exitcode == 0:
             return Outcome(task.run_id, "ok")
-        if (failure_directory(out_dir, task) / FAILED_FILE).is_file():
-            return Outcome(task.run_id, "failed",
-                           json.loads((failure_directory(out_dir, task) / FAILED_FILE).read_text())["error"])
+        recorded = read_json_object(failure_directory(out_dir, task) / FAILED_FILE)
+        if recorded is not None and isinstance(recorded.get("error"), str):
+            return Outcome(task.run_id, "failed", recorded["error"])
         killed = proc.exitcode is not None and proc.exitcode < 0
         how = f"killed by signal {-proc.exitcode}" if killed else f"exit code {proc.exitcode}"
         if not started and killed:  # killed from outside (or out of memory) while importing
@@ -133,6 +178,16 @@ class LocalExecutor:
                                   "worker is a spawned process that imports the script again); see the worker's "
                                   "error above", "")
         return record_failure(out_dir, task, f"worker process died ({how}); SUMO crashed?", "")
+
+
+def _received(receive: Connection) -> Outcome | None:
+    """The outcome a worker sent before it ended (None: it sent none, or died while sending); closes the pipe."""
+    try:
+        return receive.recv() if receive.poll() else None
+    except (EOFError, OSError, pickle.UnpicklingError):
+        return None
+    finally:
+        receive.close()
 
 
 class RayExecutor:

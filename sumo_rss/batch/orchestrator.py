@@ -19,9 +19,10 @@ import pandas as pd
 from tqdm import tqdm
 
 from ..errors import SumoRssError
-from ..files import read_json_object
-from .aggregate import write_batch_outputs
+from ..files import make_folder, read_json_object
+from .aggregate import RESERVED_NAMES, write_batch_outputs
 from .executors import LocalExecutor, Outcome, RayExecutor
+from .integrity import damage
 from .runner import MANIFEST_FILE, SUMMARY_FILE, partial_run_is_live, run_directory
 from .spec import Task
 
@@ -38,22 +39,38 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
         sources = sorted({str(t.spec.source) for t in tasks if t.run_id in twice})
         raise SumoRssError(f"the batch names run {twice[0]} twice (the same scenario name, variant and seed, from "
                            f"{' and '.join(sources)})")
+    clash = next((t for t in tasks if t.run_id.split("/", 1)[0] in RESERVED_NAMES), None)
+    if clash is not None:
+        raise SumoRssError(f"{clash.spec.source}: name: the runs of scenario {clash.spec.name!r} would be a folder "
+                           f"{out_dir / clash.run_id.split('/', 1)[0]}, where the batch writes its own file (expected "
+                           f"a name other than {', '.join(RESERVED_NAMES)})")
     if out_dir.exists() and not out_dir.is_dir():
         raise SumoRssError(f"{out_dir}: expected a folder for the batch's results, got a file")
-    out_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(out_dir)
     with _BatchLock(out_dir, tasks):
-        todo = [t for t in tasks if not _finished(out_dir, t)]
-        stale = [run_directory(out_dir, t) for t in todo if (run_directory(out_dir, t) / SUMMARY_FILE).is_file()]
+        todo, stale = [], {}
+        for task in tasks:
+            reason = _unfinished(out_dir, task)
+            if reason is not None:
+                todo.append(task)
+                if run_directory(out_dir, task).exists():
+                    stale[run_directory(out_dir, task)] = reason
         if stale:
-            warnings.warn(f"{out_dir}: {len(stale)} finished run(s) were made from other scenario parameters, "
-                          "were interrupted or are damaged; running them again", stacklevel=2)
+            first = "; ".join(list(stale.values())[:3])
+            warnings.warn(f"{out_dir}: {len(stale)} run folder(s) are not a finished run of the batch's scenarios "
+                          f"(made from other scenario parameters, interrupted or damaged: {first}"
+                          f"{'; ...' if len(stale) > 3 else ''}); running them again", stacklevel=2)
             for folder in stale:  # gone first: a rerun that fails must not leave the old results standing for it
-                shutil.rmtree(folder)
-        failed = 0
+                if folder.is_dir() and not folder.is_symlink():
+                    shutil.rmtree(folder)
+                else:  # a file (or a link) where the run's folder belongs
+                    folder.unlink()
+        failed, outcomes = 0, {}
         with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="runs", unit="run", disable=not progress,
                   file=sys.stderr, dynamic_ncols=True) as bar:
             def on_result(outcome: Outcome) -> None:
                 nonlocal failed
+                outcomes[outcome.run_id] = outcome
                 failed += outcome.status != "ok"
                 bar.set_postfix(failed=failed, refresh=False)
                 bar.update(1)
@@ -62,20 +79,26 @@ def run_batch(tasks: list[Task], out_dir: Path, executor: LocalExecutor | RayExe
                 executor.run(todo, out_dir, on_result)
             finally:  # also after Ctrl-C: what finished is summarised, what was killed leaves nothing behind
                 _remove_partial_runs(out_dir, tasks)
-                rows = write_batch_outputs(out_dir, tasks)
+                rows = write_batch_outputs(out_dir, tasks, outcomes)
     return rows
 
 
-def _finished(out_dir: Path, task: Task) -> bool:
-    """Whether ``task``'s run folder holds a complete run of the same resolved scenario (the parameter hash of its
-    manifest matches): a scenario changed since is run again, not reported from the old run; so is a run whose
-    summary or manifest cannot be read, or is not what a finished run writes (damaged)."""
+def _unfinished(out_dir: Path, task: Task) -> str | None:
+    """Why ``task``'s run folder does not hold a complete run of the same resolved scenario (None: it does). Not
+    when the folder is missing, its summary or manifest cannot be read or are not what a finished run writes, the
+    run was interrupted, the scenario changed since (the parameter hash of its manifest differs: it is run again, not
+    reported from the old run), or a file its manifest lists is missing or not as the run wrote it."""
     folder = run_directory(out_dir, task)
+    if not folder.exists():
+        return "not run"
     manifest, summary = read_json_object(folder / MANIFEST_FILE), read_json_object(folder / SUMMARY_FILE)
-    if manifest is None or summary is None or summary.get("status") != "ok" or \
-            summary.get("run_id") != task.run_id:
-        return False
-    return manifest.get("parameter_hash") == task.parameter_hash()
+    if manifest is None or summary is None or summary.get("run_id") != task.run_id:
+        return f"{folder}: its {MANIFEST_FILE if manifest is None else SUMMARY_FILE} is missing or damaged"
+    if summary.get("status") != "ok":
+        return f"{folder}: status {summary.get('status')!r}, not 'ok'"
+    if manifest.get("parameter_hash") != task.parameter_hash():
+        return f"{folder}: made from other scenario parameters"
+    return damage(folder, manifest.get("files"))
 
 
 class _BatchLock:

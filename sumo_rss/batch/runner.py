@@ -1,10 +1,11 @@
 """Run one task (scenario variant + seed) into its own run directory, written atomically.
 
 A run directory ``<out>/<scenario>[__<variant>]/<seed>/`` holds: ``manifest.json`` (versions, seed, parameter
-hash), ``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the
-ego's episodes step by step), ``episode_states.npz`` (every episode step by step) and ``trajectories.npz`` (the
-vehicles near the ego, or all, per step: what ``sumo-rss view`` replays), the resolved ``scenario.toml``, the SUMO
-inputs/outputs and logs.
+hash, and the size and SHA-256 of every other file of the folder: :mod:`~sumo_rss.batch.integrity`),
+``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the ego's episodes
+step by step), ``episode_states.npz`` (every episode step by step) and ``trajectories.npz`` (the vehicles near the
+ego, or all, per step: what ``sumo-rss view`` replays), the resolved ``scenario.toml``, the SUMO inputs/outputs and
+logs.
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ import tomli_w
 
 from .. import __version__
 from ..errors import ScenarioError, SumoRssError
-from ..files import write_json
+from ..files import atomic_path, make_folder, output_error, write_json, write_text
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, ParamResolver
 from ..rss.params import MODEL_VERSION
@@ -35,6 +36,7 @@ from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from ..trajectory import TrajectoryState
 from ..view.trajectories import NEAR_EGO_M, TRAJECTORY_FILE, TrajectoryRecorder
+from .integrity import folder_files
 from .spec import Task, variant_name
 
 SUMMARY_FILE = "summary.json"
@@ -75,8 +77,14 @@ class RunSummary:
 
 
 def param_resolver(spec: ScenarioSpec) -> ParamResolver:
-    """The RSS parameters of a scenario, per vehicle class and vType."""
-    dynamics = {vt.id: (vt.tau, vt.decel) for vt in spec.demand.vtypes}
+    """The RSS parameters of a scenario, per vehicle class and vType (those of its own SUMO files as SUMO resolves
+    them, as an offline audit given those files reads them; this starts libsumo for a moment)."""
+    dynamics = {}
+    if spec.demand.route_files or spec.sumo.additional_files:
+        from ..rss.fcd import read_vehicle_info
+
+        dynamics = read_vehicle_info([*spec.sumo.additional_files, *spec.demand.route_files], spec.net_file).dynamics
+    dynamics |= {vt.id: (vt.tau, vt.decel) for vt in spec.demand.vtypes}
     if spec.ego is not None:
         dynamics[EGO_TYPE] = (spec.ego.vehicle.tau, spec.ego.vehicle.decel)
     return ParamResolver(spec.rss.preset, spec.rss.role_overrides, spec.rss.vtype_overrides, dynamics,
@@ -137,8 +145,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
 
     task = Task(spec, variant)
     final = run_directory(out_dir, task)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{spec.seed}.", suffix=".partial", dir=final.parent))
+    created = [folder for folder in (final.parent, *final.parent.parents) if not folder.exists()]  # removed on failure
+    work = _work_folder(final, spec.seed)
     writer = None
     try:
         writer = (work / WRITER_LOCK).open("w")
@@ -152,7 +160,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                              "not by ego.controller:\n# this file alone does not reproduce the run.\n"
                              + scenario_text)
             manifest["custom_controller"] = custom
-        (work / "scenario.toml").write_bytes(scenario_text.encode("utf-8"))
+        write_text(work / "scenario.toml", scenario_text)
         write_json(work / MANIFEST_FILE, manifest)
         started = time.perf_counter()
         network = RoadNetwork.from_file(spec.net_file)
@@ -188,6 +196,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         if not (work / MANIFEST_FILE).is_file():  # its folder was removed meanwhile: what is written now is partial
             raise SumoRssError(f"{work}: the run's folder was removed while the run was writing it (by another "
                                "process); its results would be incomplete")
+        session.check_outputs()
         audit.to_csv(work)
         recorder.write(work / TRAJECTORY_FILE)
         planner = report() if report is not None else None
@@ -213,15 +222,41 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             collision_events=[asdict(c) for c in session.collisions], versions=manifest["versions"],
             planner=planner)
         write_json(work / SUMMARY_FILE, asdict(summary))
+        manifest["files"] = folder_files(work, (MANIFEST_FILE, WRITER_LOCK))  # last: what a resume checks
+        write_json(work / MANIFEST_FILE, manifest)
         _replace_dir(work, final)
         (final / WRITER_LOCK).unlink(missing_ok=True)  # once renamed: a partial folder without it would look dead
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(work, ignore_errors=True)
+        if isinstance(exc, SumoRssError) and exc.args and isinstance(exc.args[0], str):
+            # the files it names as the run's folder has them (the hidden folder it was built in is gone)
+            exc.args = (exc.args[0].replace(str(work), str(final)), *exc.args[1:])
+        for folder in created:  # a failed run leaves no empty folders behind (a batch records its failure)
+            try:
+                folder.rmdir()
+            except OSError:  # not empty (another run's), or gone
+                break
         raise
     finally:
         if writer is not None:
             writer.close()
     return summary
+
+
+def _work_folder(final: Path, seed: int) -> Path:
+    """A new hidden ``.<seed>.*.partial`` folder beside ``final`` (its parents made as needed) to build the run in.
+    Tried again where a failing run of the same scenario removed the empty parent meanwhile."""
+    attempts = 3
+    while True:
+        make_folder(final.parent)
+        try:
+            return Path(tempfile.mkdtemp(prefix=f".{seed}.", suffix=".partial", dir=final.parent))
+        except FileNotFoundError as exc:
+            attempts -= 1
+            if not attempts:
+                raise output_error(final.parent, exc) from None
+        except OSError as exc:
+            raise output_error(final.parent, exc) from None
 
 
 def partial_run_is_live(partial: Path) -> bool:
@@ -256,7 +291,7 @@ def _ego_driver(spec: ScenarioSpec, network: RoadNetwork, resolver: ParamResolve
 
 
 def _write_ego_trace(path: Path, rows: list[tuple]) -> None:
-    with path.open("w", newline="", encoding="utf-8") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(EGO_TRACE_COLUMNS)
         writer.writerows((f"{t:.6f}", f"{x:.6f}", f"{y:.6f}", f"{v:.6f}", f"{a:.6f}", lane, f"{pos:.6f}",

@@ -20,7 +20,7 @@ import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..errors import ScenarioError
+from ..errors import ScenarioError, shown
 from ..road.build import without_generator_header
 from ..rss.params import PRESETS
 from ..scenario import CONTROLLERS, MAX_SEED, MAX_VEH_PER_HOUR, ScenarioSpec, load_scenario
@@ -46,9 +46,15 @@ class Task:
     def parameter_hash(self, custom_controller: str | None = None) -> str:
         """SHA-256 of the resolved scenario: two runs with the same hash simulate the same thing. The network
         counts by its content, not its path or netconvert's build-date comment: a moved or re-cloned checkout, or
-        `sumo-rss nets build` of the same sources, resumes its batches. A run whose ego a Python controller drove
+        `sumo-rss nets build` of the same sources, resumes its batches; so do the scenario's route and additional
+        files. A run whose ego a Python controller drove
         (``custom_controller``: its class) hashes differently from the scenario's own."""
-        data = {**self.spec.to_toml_data(), "network": _file_digest(self.spec.net_file)}
+        data = self.spec.to_toml_data()
+        data["network"] = _file_digest(self.spec.net_file)
+        for table, key, files in (("demand", "route_files", self.spec.demand.route_files),
+                                  ("sumo", "additional_files", self.spec.sumo.additional_files)):
+            if files:
+                data[table][key] = [_file_digest(p) for p in files]
         if custom_controller is not None:
             data["custom_controller"] = custom_controller
         text = json.dumps(data, sort_keys=True, default=str)
@@ -131,7 +137,7 @@ def parse_seeds(value: object, reader: TableReader | None = None) -> tuple[int, 
     ScenarioError) otherwise."""
     def fail() -> Exception:
         expected = f"expected a list of integers in [0, {MAX_SEED}], 'A:B' or 'a,b,c' (at most {MAX_SEEDS} seeds)"
-        return reader.error("seeds", expected, value) if reader else ValueError(f"{expected}, got {value!r}")
+        return reader.error("seeds", expected, value) if reader else ValueError(f"{expected}, got {shown(value)}")
 
     try:
         if isinstance(value, str) and ":" in value:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import base64
 import html
+import io
 import sys
 from pathlib import Path
 
@@ -10,33 +11,33 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import atomic_path, write_text
+from ..files import make_folder, write_file_set
+from .inputs import check_table
 from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import ego_table, read_batch_csv, responsibility_table, run_label, violation_table
 
 
 FIGURES = ("ego_responsibility", "responsibility", "violations", "pair_timeline", "ego_speed")
-SUMMARY_COLUMNS_USED = ("run_id", "scenario", "variant", "seed", "status")  # of batch_summary.csv
+REPORT_FILES = ("report.html",)  # written into the batch folder (and the figures into its report/ folder)
 
 
 def write_report(batch_dir: Path, views: bool = True, progress: bool = False) -> Path:
     """Write the PNGs and report.html of a batch folder; returns the HTML path. ``views``: also write each run's
     replay page (``sumo-rss view``, where missing or older than the run) and link every table row to its runs'
-    pages; ``progress``: a bar while they are written."""
+    pages; ``progress``: a bar while they are written. Every input is read and checked first, and the report's
+    outputs are written as a set (:func:`~sumo_rss.files.write_file_set`): a damaged input or a full disk leaves
+    the folder as it was."""
     batch_dir = Path(batch_dir)
     path = batch_dir / "batch_summary.csv"
+    if batch_dir.exists() and not batch_dir.is_dir():
+        raise SumoRssError(f"{batch_dir}: is a file (expected a batch folder, as 'sumo-rss batch' writes it)")
     if not path.is_file():
         raise SumoRssError(f"{batch_dir}: no batch_summary.csv; run 'sumo-rss batch' first")
     summary = _read(batch_dir, "batch_summary")
-    missing = [c for c in SUMMARY_COLUMNS_USED if c not in summary.columns]
-    if missing:
-        raise SumoRssError(f"{path}: expected the columns {', '.join(SUMMARY_COLUMNS_USED)} (as 'sumo-rss batch' "
-                           f"writes them), missing {', '.join(missing)}")
     if summary.empty:
         raise SumoRssError(f"{path}: lists no runs")
     episodes, violations, states = (_read(batch_dir, name) for name in ("episodes", "violations", "pair_states"))
-    figures_dir = batch_dir / "report"
-    figures_dir.mkdir(exist_ok=True)
+    traces = ego_traces(batch_dir, summary)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
     responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
     ego = ego_table(episodes, summary)
@@ -45,23 +46,35 @@ def write_report(batch_dir: Path, views: bool = True, progress: bool = False) ->
     timeline = longest_traced_episode(episodes, states)
     if timeline is not None:
         figures["pair_timeline"] = pair_timeline(states, timeline)[0]
-    traces = ego_traces(batch_dir, summary)
     if traces:
         figures["ego_speed"] = ego_speed(traces)[0]
-    for stale in set(FIGURES) - set(figures):  # a figure this batch does not have must not linger from an older one
-        (figures_dir / f"{stale}.png").unlink(missing_ok=True)
     images = {}
     for name, fig in figures.items():
-        path = figures_dir / f"{name}.png"
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
+        png = io.BytesIO()
+        fig.savefig(png, dpi=100, format="png")
         plt.close(fig)
-        images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
-    links = _view_links(batch_dir, summary, progress) if views else {}
-    page = _page(batch_dir, summary, ego, responsibility, broken, images, links)
-    out = batch_dir / "report.html"
-    write_text(out, page)
+        images[name] = png.getvalue()
+    figures_dir, out = batch_dir / "report", batch_dir / "report.html"
+    made = not figures_dir.exists()
+    make_folder(figures_dir)  # before the runs' replay pages: a file standing there fails before anything is written
+    try:
+        links = _view_links(batch_dir, summary, progress) if views else {}
+        page = _page(batch_dir, summary, ego, responsibility, broken,
+                     {name: base64.b64encode(data).decode("ascii") for name, data in images.items()}, links)
+        writers = {figures_dir / f"{name}.png": _bytes_writer(data) for name, data in images.items()}
+        writers[out] = lambda tmp: tmp.write_text(page, encoding="utf-8")
+        write_file_set(writers)
+    except BaseException:
+        if made:
+            figures_dir.rmdir()
+        raise
+    for stale in set(FIGURES) - set(figures):  # a figure this batch does not have must not linger from an older one
+        (figures_dir / f"{stale}.png").unlink(missing_ok=True)
     return out
+
+
+def _bytes_writer(data: bytes):
+    return lambda path: path.write_bytes(data)
 
 
 def _view_links(batch_dir: Path, summary: pd.DataFrame, progress: bool) -> dict[str, str]:
@@ -99,12 +112,15 @@ def _escaped(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def _read(batch_dir: Path, name: str) -> pd.DataFrame:
-    """A batch CSV (:func:`read_batch_csv`); SumoRssError naming it where it is not one."""
+    """A batch CSV (:func:`read_batch_csv`), checked (:func:`~sumo_rss.report.inputs.check_table`; an absent one is
+    an empty table); SumoRssError naming it where it is not one."""
+    path = batch_dir / f"{name}.csv"
     try:
-        return read_batch_csv(batch_dir, name)
+        table = read_batch_csv(batch_dir, name)
     except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{batch_dir / (name + '.csv')}: not a CSV file as 'sumo-rss batch' writes it ({exc})") \
+        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss batch' writes it ({' '.join(str(exc).split())})") \
             from None
+    return table if table.empty and not path.is_file() else check_table(table, path, name)
 
 
 def longest_traced_episode(episodes: pd.DataFrame, states: pd.DataFrame) -> pd.Series | None:
@@ -127,11 +143,21 @@ def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame
     for (scenario, variant), group in ok.groupby(["scenario", "variant"], sort=True):
         for run in group.sort_values("seed").itertuples():
             path = batch_dir / run.run_id / "ego_trace.csv"
-            trace = pd.read_csv(path) if path.is_file() else None
+            trace = _read_trace(path) if path.is_file() else None
             if trace is not None and not trace.empty:
                 traces[f"{scenario}{' [' + variant + ']' if variant else ''} seed {run.seed}"] = trace
                 break
     return traces
+
+
+def _read_trace(path: Path) -> pd.DataFrame:
+    """A run's ego_trace.csv, checked as the batch CSVs are."""
+    try:
+        trace = pd.read_csv(path, keep_default_na=False)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss run' writes it ({' '.join(str(exc).split())})") \
+            from None
+    return check_table(trace, path, "ego_trace", ["time_s", "speed_ms"])
 
 
 def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibility: pd.DataFrame,

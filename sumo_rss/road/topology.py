@@ -1,14 +1,18 @@
 """A light index of a SUMO .net.xml: normal edges, their lanes (with the vehicle classes they permit) and the
 lane-to-lane connections between edges.
 
-Used to validate scenario routes without loading the full road model. Parsed with ``iterparse``.
+Used to validate scenario routes without loading the full road model, and to check the whole file once
+(:mod:`~sumo_rss.road.net_check`) before the road model is built from it. Parsed with ``iterparse``.
 """
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+
+from ..sumo_xml import MALFORMED, open_output
+from .net_check import NetChecker, NetworkError
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,7 @@ class NetTopology:
     edges: dict[str, EdgeInfo]
     lanes: dict[str, tuple[Permissions, ...]]  # by edge, by lane index
     lane_links: dict[tuple[str, str], frozenset[tuple[int, int]]]  # (from, to) edge → (from, to) lane indices
+    signals: dict[str, int] = field(default_factory=dict)  # signal id → links it controls (its states' length)
 
     def connected(self, from_edge: str, to_edge: str, vclass: str | None = None) -> bool:
         """Whether ``to_edge`` follows ``from_edge``, for ``vclass`` (None: for any class) through a connection
@@ -63,8 +68,9 @@ class NetTopology:
 
 
 def read_topology(net_file: Path) -> NetTopology:
-    """Index of ``net_file`` (read again only when its size or modification time changed). Raises ``ValueError``
-    if the file is not a SUMO network."""
+    """Index of ``net_file`` (read again only when its size or modification time changed; ``*.net.xml.gz`` as
+    SUMO reads it). Raises ``ValueError`` naming the file, element and attribute if the file is not a SUMO network
+    that the road model can use."""
     status = Path(net_file).stat()
     return _read_topology(Path(net_file).resolve(), status.st_size, status.st_mtime_ns)
 
@@ -74,31 +80,47 @@ def _read_topology(net_file: Path, size: int, modified_ns: int) -> NetTopology:
     edges: dict[str, EdgeInfo] = {}
     lanes: dict[str, tuple[Permissions, ...]] = {}
     lane_links: dict[tuple[str, str], set[tuple[int, int]]] = {}
-    current: tuple[str, list[float], list[float], list[Permissions]] | None = None
+    signals: dict[str, int] = {}
+    check = NetChecker(net_file)
     try:
-        for event, elem in ET.iterparse(net_file, events=("start", "end")):
-            if event == "start" and elem.tag == "edge" and elem.get("function") != "internal":
-                current = (elem.get("id", ""), [], [], [])
-            elif event == "end" and elem.tag == "lane" and current is not None:
-                current[1].append(float(elem.get("length", "0")))
-                current[2].append(float(elem.get("speed", "13.89")))  # SUMO's default lane speed
-                current[3].append(Permissions.of(elem))
-            elif event == "end" and elem.tag == "edge":
-                if current is not None:
-                    edge_id, lengths, speeds, permissions = current
-                    edges[edge_id] = EdgeInfo(edge_id, len(lengths), max(lengths, default=0.0),
-                                              min(speeds, default=0.0))
-                    lanes[edge_id] = tuple(permissions)
-                current = None
-                elem.clear()
-            elif event == "end" and elem.tag == "connection":
-                src, dst = elem.get("from", ""), elem.get("to", "")
-                if not src.startswith(":") and not dst.startswith(":"):
-                    lane_links.setdefault((src, dst), set()).add((int(elem.get("fromLane", "0")),
-                                                                  int(elem.get("toLane", "0"))))
-                elem.clear()
-    except (ET.ParseError, ValueError) as exc:
-        raise ValueError(f"{net_file}: not a readable SUMO network ({exc})") from exc
+        with open_output(net_file) as source:
+            context = ET.iterparse(source, events=("start", "end"))
+            _, root = next(context)
+            if root.tag != "net":
+                raise NetworkError(f"{net_file}: not a SUMO network (root element <{root.tag}>, expected <net>)")
+            for event, elem in context:
+                if event != "end":
+                    continue
+                if elem.tag == "edge":
+                    check.edge(elem)
+                    if elem.get("function") != "internal":
+                        edge_lanes = elem.findall("lane")
+                        edge_id = elem.get("id", "")
+                        edges[edge_id] = EdgeInfo(edge_id, len(edge_lanes),
+                                                  max((float(lane.get("length", "0")) for lane in edge_lanes),
+                                                      default=0.0),
+                                                  min((float(lane.get("speed", "0")) for lane in edge_lanes),
+                                                      default=0.0))
+                        lanes[edge_id] = tuple(Permissions.of(lane) for lane in edge_lanes)
+                    elem.clear()
+                elif elem.tag == "connection":
+                    check.connection(elem)
+                    src, dst = elem.get("from", ""), elem.get("to", "")
+                    if not src.startswith(":") and not dst.startswith(":"):
+                        lane_links.setdefault((src, dst), set()).add((int(elem.get("fromLane", "0")),
+                                                                      int(elem.get("toLane", "0"))))
+                    elem.clear()
+                elif elem.tag == "junction":
+                    check.junction(elem)
+                    elem.clear()
+                elif elem.tag == "tlLogic":
+                    signals[check.text(elem, "id")] = check.signal(elem)
+                    elem.clear()
+        check.finish()
+    except NetworkError:
+        raise
+    except (*MALFORMED, StopIteration) as exc:
+        raise NetworkError(f"{net_file}: not a readable SUMO network ({exc or 'an empty file'})") from exc
     if not edges:
-        raise ValueError(f"{net_file}: no edges found; is this a SUMO .net.xml?")
-    return NetTopology(edges, lanes, {k: frozenset(v) for k, v in lane_links.items()})
+        raise NetworkError(f"{net_file}: no edges found; is this a SUMO .net.xml?")
+    return NetTopology(edges, lanes, {k: frozenset(v) for k, v in lane_links.items()}, signals)

@@ -5,14 +5,14 @@ proper response and blame (rss.md §3-§6).
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..files import write_csv, write_json
+from ..files import csv_writer, json_text, make_folder, write_file_set
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
@@ -89,6 +89,8 @@ class ParamResolver:
 
 
 PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
+# AuditResult's files
+AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", STATE_FILE, PARAMS_FILE)
 
 
 @dataclass
@@ -100,19 +102,33 @@ class AuditResult:
     pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
     episode_states: EpisodeStates | None = None  # per step of every episode (``Auditor(record_states=True)``)
 
-    def to_csv(self, directory: str | Path) -> None:
+    def file_names(self) -> tuple[str, ...]:
+        """The files :meth:`to_csv` writes."""
+        return tuple(name for name in AUDIT_FILES if (name != "pair_states.csv" or self.pair_states is not None)
+                     and (name != STATE_FILE or self.episode_states is not None))
+
+    def to_csv(self, directory: str | Path, also: Mapping[str, Callable[[Path], None]] | None = None) -> None:
         """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced, episode_states.npz
-        when recorded) and the parameters they were judged with, rss_params.json, atomically."""
+        when recorded), the parameters they were judged with, rss_params.json, and the files ``also`` names
+        (file name → a function writing it to a path), as a set (:func:`~sumo_rss.files.write_file_set`: all of
+        them or, when one cannot be written, none)."""
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        frames = [("episodes", self.episodes), ("violations", self.violations), ("collisions", self.collisions)]
-        if self.pair_states is not None:
-            frames.append(("pair_states", self.pair_states))
-        for name, frame in frames:
-            write_csv(frame, directory / f"{name}.csv")
+        made = not directory.exists()
+        make_folder(directory)
+        frames = {"episodes.csv": self.episodes, "violations.csv": self.violations, "collisions.csv": self.collisions,
+                  "pair_states.csv": self.pair_states}
+        writers = {directory / name: csv_writer(frames[name]) for name in self.file_names() if name in frames}
         if self.episode_states is not None:
-            self.episode_states.write(directory / STATE_FILE)
-        write_json(directory / PARAMS_FILE, self.params)
+            writers[directory / STATE_FILE] = self.episode_states.write
+        params = json_text(self.params)
+        writers[directory / PARAMS_FILE] = lambda path: path.write_text(params, encoding="utf-8")
+        writers.update({directory / name: write for name, write in (also or {}).items()})
+        try:
+            write_file_set(writers)
+        except BaseException:
+            if made:  # nothing left behind: neither the files nor the folder made for them
+                directory.rmdir()
+            raise
 
 
 def collision_blame(records: list[dict]) -> tuple[str, str]:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..boxes import boxes_overlap
-from ..errors import SumoRssError
+from ..errors import SumoRssError, cut, listed, shown
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
@@ -27,7 +27,9 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
+from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
+from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
 
@@ -82,17 +84,21 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
 
     files = [] if paths is None else [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     documents = []
-    for path in files:
+    for path in files:  # gzipped (*.rou.xml.gz) as SUMO reads them
         try:
-            documents.append(ET.parse(path).getroot())
-        except ET.ParseError as exc:
+            with open_output(path) as source:
+                documents.append(ET.parse(source).getroot())
+        except MALFORMED as exc:
             raise FcdError(f"{path}: not a readable SUMO route/vType file ({exc})") from exc
+        if documents[-1].tag not in ("routes", "additional"):
+            raise FcdError(f"{path}: not a SUMO route/vType file (root element <{documents[-1].tag}>, expected "
+                           "<routes> or <additional>)")
     known = vtype_attribute_names() | {"id"}
     for path, document in zip(files, documents):
         for vtype in document.iter("vType"):
             unknown = sorted(set(vtype.attrib) - known)
             if unknown:
-                warnings.warn(f"{path}: vType {vtype.get('id', '?')!r}: unknown attribute(s) {', '.join(unknown)}, "
+                warnings.warn(f"{path}: vType {shown(vtype.get('id', '?'))}: unknown attribute(s) {listed(unknown)}, "
                               "which SUMO ignores (a typo?)", stacklevel=2)
     try:
         types = sumo_vtypes(net_file, documents, ", ".join(str(p) for p in files))
@@ -130,6 +136,7 @@ def read_collisions(path: Path) -> list[CollisionEvent]:
                 time, elem.get("collider", ""), elem.get("victim", ""), elem.get("colliderType", ""),
                 elem.get("victimType", ""), collider_speed, victim_speed, elem.get("type", ""), elem.get("lane", ""),
                 pos))
+            check_collision_record(reports[-1], record)
     except (*MALFORMED, ValueError) as exc:
         raise FcdError(f"{path}: not a readable SUMO collision-output file ({exc})") from exc
     return sorted(reports, key=lambda c: c.time)
@@ -143,7 +150,7 @@ def _record_number(elem: ET.Element, name: str, record: str) -> float:
     except ValueError:
         value = np.nan
     if not np.isfinite(value):
-        raise FcdError(f"{record}: attribute {name}={text!r} is not a finite number")
+        raise FcdError(f"{record}: attribute {name}={shown(text)} is not a finite number")
     return value
 
 
@@ -174,12 +181,20 @@ class _CollisionReports:
         self._next = end
         return reports[start:end]
 
+    def parties(self) -> np.ndarray:
+        """The ids of every collider and victim of the reports."""
+        return np.array(sorted({who for c in self._reports for who in (c.collider, c.victim)}), dtype=str)
+
+    def audited(self) -> list[CollisionEvent]:
+        """The reports handed out to the time steps so far."""
+        return self._reports[self._before:self._next]
+
     def warn_unused(self, collisions: Path, fcd: Path) -> None:
         """Warn about the reports outside the FCD's time span (a cut FCD, or files of different runs)."""
         outside = self._reports[:self._before] + self._reports[self._next:]
         if outside:
             span = f"{self._steps[0]:g}-{self._steps[1]:g} s" if self._steps else "no time steps"
-            first = ", ".join(f"{c.collider}/{c.victim} at {c.time:g} s" for c in outside[:3])
+            first = ", ".join(f"{cut(c.collider)}/{cut(c.victim)} at {c.time:g} s" for c in outside[:3])
             warnings.warn(f"{collisions}: {len(outside)} collision report(s) outside the time steps of {fcd} ({span}) "
                           f"not audited: {first}{', ...' if len(outside) > 3 else ''}", stacklevel=3)
 
@@ -200,6 +215,7 @@ class FcdReader:
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
         self._warned_persons = False  # about persons and containers, which are not audited
+        self.people: set[str] = set()  # ids of the persons and containers in the file so far (not audited)
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -293,7 +309,8 @@ class FcdReader:
         if not self._warned_jump:
             self._warned_jump = True
             k = int(np.flatnonzero(jumped)[0])
-            warnings.warn(f"{self.path}: {ids[k]} moves {abs(lat_moved[k]):.2f} m sideways in one {dt:g} s step at "
+            warnings.warn(f"{self.path}: {cut(str(ids[k]))} moves {abs(lat_moved[k]):.2f} m sideways onto another "
+                          f"lane in one {dt:g} s step at "
                           f"{time:g} s: its lane changes are instantaneous (SUMO without --lanechange.duration or "
                           "--lateral-resolution); at such steps the lateral speed is taken as 0, as SUMO reports it",
                           stacklevel=3)
@@ -307,37 +324,33 @@ class FcdReader:
             time = math.nan
         if not math.isfinite(time):
             after = f"after time step {self._prev_time} s" if self._prev_time is not None else "first time step"
-            raise FcdError(f"{self.path}: <timestep> ({after}): time: expected a number of seconds, got {value!r}")
+            raise FcdError(f"{self.path}: <timestep> ({after}): time: expected a number of seconds, got {shown(value)}")
         return time
 
     def _snapshot(self, step: FcdStep, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
         where = f"{self.path}, time step {time} s"
-        if not self._warned_persons and step.unaudited:
+        self.people.update(step.unaudited)
+        if step.unaudited and not self._warned_persons:
             self._warned_persons = True
             warnings.warn(f"{where}: persons and containers are not audited (the RSS model covers vehicles; a "
                           "collision with one is listed with blamed 'none')", stacklevel=3)
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
-            raise FcdError(f"{where}: vehicle {vid!r} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
+            raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
         id_column = step.column("id")
         ids = np.array(id_column, dtype=str)
         lane_id = np.array(step.column("lane"), dtype=str)
         if len(set(id_column)) < len(ids):
             twice = next(v for v, count in Counter(id_column).items() if count > 1)
-            raise FcdError(f"{where}: vehicle {twice!r} is listed more than once")
+            raise FcdError(f"{where}: vehicle {shown(twice)} is listed more than once")
         x, y, angle, speed = (_numbers(step, name, where) for name in ("x", "y", "angle", "speed"))
-        if (speed < 0.0).any():  # the audit's speeds are along the road; SUMO writes none below 0
-            bad = int(np.argmax(speed < 0.0))
-            raise FcdError(f"{where}: vehicle {id_column[bad]!r}: speed: expected a number >= 0 (m/s), got "
-                           f"{step.column('speed')[bad]!r}")
         lane = np.fromiter(map(self._lane_index.get, step.column("lane"), itertools.repeat(-1)), int, len(step))
         if np.any(lane < 0):
-            try:
-                self.network.lane_indices(lane_id)  # names the lanes not in the network
-            except UnknownLaneError as exc:
-                raise FcdError(f"{where}: {exc}; is --net the network of this run?") from exc
+            missing = sorted(set(lane_id[lane < 0].tolist()))
+            raise FcdError(f"{where}: lanes not in {self.network.path.name}: {listed(missing)}; is --net the network "
+                           "of this run?")
         # Without 'type' in the FCD, the route files' vehicles and flows tell it.
         types = step.column("type")
         if None in types or "" in types:
@@ -346,7 +359,7 @@ class FcdReader:
         unknown = set(types) - self.vehicles.sizes.keys() - self._unknown_types
         if unknown:
             self._unknown_types |= unknown
-            warnings.warn(f"{self.path}: vType {', '.join(sorted(unknown))} is not defined (give its route or vType "
+            warnings.warn(f"{self.path}: vType {listed(sorted(unknown))} is not defined (give its route or vType "
                           f"file); audited at SUMO's passenger size {SUMO_DEFAULT_SIZE[0]:g} m x "
                           f"{SUMO_DEFAULT_SIZE[1]:g} m", stacklevel=2)
         sizes = np.array(list(map(self.vehicles.sizes.get, types, itertools.repeat(SUMO_DEFAULT_SIZE))),
@@ -358,9 +371,12 @@ class FcdReader:
             return _numbers(step, name, where) if step.has(name) else None
 
         lane_pos, lat_pos = optional("pos"), optional("posLat")
+        accel, lat_speed = optional("acceleration"), optional("speedLat")
+        signals = _numbers(step, "signals", where, integer=SIGNALS_FORM, default="0")
+        check_step(where, time, self._prev_time, StepValues(ids, lane, x, y, angle, speed, lane_pos, lat_pos, accel,
+                                                            lat_speed, signals), self.network)
         if self._resolution is None and len(step) and not step.has("speedLat"):
             self._resolution = self._lateral_resolution(step.column("x"), lat_pos is not None)
-        accel, lat_speed = optional("acceleration"), optional("speedLat")
         fronts, centres = self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
                                             lat_speed is None)
         if fronts is not None:  # SUMO's pos and posLat are those of the front-bumper centre
@@ -383,8 +399,8 @@ class FcdReader:
         centred = same_edge & (np.abs(lat_pos) <= CENTRED) & (np.abs(prev_lat_pos) <= CENTRED)
         jumped = (np.abs(lat_moved) > JUMP_SPEED * dt) | (centred & (prev_lane != lane)) if dt else \
             np.zeros(len(ids), bool)
-        if jumped.any():
-            self._warn_lane_jumps(ids, lat_moved, jumped, dt, time)
+        if (jumped & (prev_lane != lane)).any():  # a jump within a lane (SUMO's own, on one lane) is no lane change
+            self._warn_lane_jumps(ids, lat_moved, jumped & (prev_lane != lane), dt, time)
         accel_resolution = 0.0
         if accel is None:
             accel = np.where(seen, (speed - prev_speed) / dt, 0.0) if dt else np.zeros(len(ids))
@@ -415,7 +431,7 @@ class FcdReader:
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
             vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
-            signals=_numbers(step, "signals", where, integer=True, default="0"),
+            signals=signals,
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
             accel_resolution=accel_resolution)
 
@@ -445,6 +461,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
+    if tls_states is None:
+        warn_without_signal_states(network.path)
     try:
         signals = SignalStates(network.path, tls_states)
     except ValueError as exc:
@@ -454,10 +472,13 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
+    unseen = reports.parties() if reports is not None else np.zeros(0, dtype=str)  # not in the FCD's steps so far
     for steps, snapshot in enumerate(reader, start=1):
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent:
             absent.difference_update(snapshot.ids.tolist())
+        if unseen.size:
+            unseen = unseen[~np.isin(unseen, snapshot.ids)]
         if reports is not None:
             auditor.observe(snapshot, contacts.step(reports.take_until(snapshot.time)))
         else:
@@ -477,9 +498,10 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
                       f"steps of {fcd} after it (to {snapshot.time:g} s) were audited with the states at "
                       f"{signals.known_until:g} s", stacklevel=2)
     if reports is not None:
+        check_collisions_in_fcd(collisions, fcd, reports.audited(), set(unseen.tolist()) - reader.people)
         reports.warn_unused(collisions, fcd)
     if absent:
-        warnings.warn(f"{fcd}: no vehicle {', '.join(sorted(absent))} (given as the ego): audited without it",
+        warnings.warn(f"{fcd}: no vehicle {listed(sorted(absent))} (given as the ego): audited without it",
                       stacklevel=2)
     return auditor.finish()
 
@@ -510,10 +532,11 @@ def _in_contact(snapshot: WorldSnapshot, pairs: PairSituations, network: RoadNet
     return overlap
 
 
-def _numbers(step: FcdStep, name: str, where: str, *, integer: bool = False, default: str | None = None
+def _numbers(step: FcdStep, name: str, where: str, *, integer: str = "", default: str | None = None
              ) -> np.ndarray:
-    """Attribute ``name`` of every vehicle of a time step as finite floats (or integers), ``default`` where a
-    vehicle lacks it (None: required); FcdError naming the vehicle and the value."""
+    """Attribute ``name`` of every vehicle of a time step as finite floats (or, with ``integer``, the expected form
+    of its integers, as integers), ``default`` where a vehicle lacks it (None: required); FcdError naming the
+    vehicle and the value."""
     kind = int if integer else float
     column = step.column(name)
     try:
@@ -522,14 +545,15 @@ def _numbers(step: FcdStep, name: str, where: str, *, integer: bool = False, def
         values = np.fromiter(map(int, column), int, len(column)) if integer else np.array(column, dtype=float)
         if integer or np.isfinite(values).all():
             return values
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer beyond 64 bits
         pass
     rows = step.rows()
     bad = next(r for r in rows if not _is_number(r.get(name, default), kind))
     if bad.get(name, default) is None:
-        raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
-    raise FcdError(f"{where}: vehicle {bad.get('id', '?')!r}: {name}: expected "
-                   f"{'an integer' if integer else 'a finite number'}, got {bad[name]!r}")
+        raise FcdError(f"{where}: vehicle {shown(bad.get('id', '?'))} lacks the attribute {name!r} "
+                       f"({NEEDED_ATTRIBUTES})")
+    raise FcdError(f"{where}: vehicle {shown(bad.get('id', '?'))}: {name}: expected "
+                   f"{integer or 'a finite number'}, got {shown(bad[name])}")
 
 
 class _PreviousStep:
@@ -557,6 +581,6 @@ def _decimals(text: str) -> int:
 
 def _is_number(text: str | None, kind: type) -> bool:
     try:
-        return text is not None and math.isfinite(kind(text))
+        return text is not None and math.isfinite(kind(text)) and (kind is float or abs(kind(text)) < 2**63)
     except ValueError:
         return False

@@ -26,7 +26,7 @@ class FcdStep:
 
     time: str | None
     vehicles: list[list[str]] = field(default_factory=list)  # per vehicle: name, value, name, value, ...
-    unaudited: bool = False  # a person or container is listed in it
+    unaudited: list[str] = field(default_factory=list)  # the ids of the persons and containers listed in it
     _columns: dict[str, tuple[str, ...]] | None = field(default=None, repr=False)
     _rows: list[dict[str, str]] | None = field(default=None, repr=False)
 
@@ -90,7 +90,7 @@ class _Handler:
             self._step = FcdStep(self.started_time)
             self._step_depth = self._depth
         elif step is not None and name in UNAUDITED_TAGS and self._depth == self._step_depth + 1:
-            step.unaudited = True
+            step.unaudited.append(_attribute(attrs, "id") or "")
 
     def end(self, name: str) -> None:
         if name == "timestep" and self._depth == self._step_depth and self._step is not None:

@@ -21,9 +21,11 @@ from ..road.junctions import JunctionModel
 from ..road.model_cache import cached
 from ..road.net_file import signal_programs
 from ..road.network import RoadNetwork
+from ..road.topology import read_topology
 from ..sim.snapshot import WorldSnapshot
 from ..sumo_xml import MALFORMED, output_elements
 from .intersection import next_route_edge
+from .record_checks import signal_state
 from .situations import VehicleFrame
 
 RED, YELLOW = "rRu", "yY"  # u: red-yellow, SUMO lets no car pass yet
@@ -150,7 +152,7 @@ class SignalStates:
         self._programs: dict[str, tuple[float, list[tuple[float, str]]]] = {}
         signals = cached(Path(net_file), "signals", lambda: signal_programs(net_file), keep=True)
         if saved_states is not None:
-            self._read_saved(saved_states)
+            self._read_saved(saved_states, read_topology(net_file).signals)
             foreign = sorted(set(self._saved) - set(signals))
             if foreign:
                 raise ValueError(f"{saved_states}: states of signal(s) {', '.join(foreign[:5])} that {net_file} does "
@@ -168,13 +170,15 @@ class SignalStates:
                 continue
             self._programs[tl_id] = (programs[0].offset, list(programs[0].phases))
 
-    def _read_saved(self, path: Path) -> None:
+    def _read_saved(self, path: Path, links: dict[str, int]) -> None:
+        """``links``: signal id → links it controls, to check the states' lengths against."""
         cut: list[int] = []
         try:
-            for elem in output_elements(path, "tlsStates", "tlsState", on_cut=cut.append):
+            for number, elem in enumerate(output_elements(path, "tlsStates", "tlsState", on_cut=cut.append), 1):
                 times, states = self._saved.setdefault(elem.get("id", ""), ([], []))
-                times.append(float(elem.get("time", "nan")))
-                states.append(elem.get("state", ""))
+                time, state = signal_state(path, number, elem, links, times[-1] if times else None)
+                times.append(time)
+                states.append(state)
         except (*MALFORMED, ValueError) as exc:
             raise ValueError(f"{path}: not a readable SUMO signal-state file (SaveTLSStates output: {exc})") from exc
         if cut:

@@ -4,6 +4,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from ..files import atomic_path, make_folder
 from ..scenario import BACKGROUND_DISTRIBUTION, EGO_TYPE, EgoSpec, ScenarioSpec, VehicleTypeSpec
 
 
@@ -88,6 +89,7 @@ def write_route_file(spec: ScenarioSpec, path: Path) -> Path:
     for _, _, elem in sorted(timed, key=lambda item: (item[0], item[1])):
         root.append(elem)
     ET.indent(root)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    ET.ElementTree(root).write(path, encoding="UTF-8", xml_declaration=True)
+    make_folder(path.parent)
+    with atomic_path(path) as tmp:
+        ET.ElementTree(root).write(tmp, encoding="UTF-8", xml_declaration=True)
     return path

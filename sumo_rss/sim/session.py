@@ -7,6 +7,7 @@ also when the code using it raises (use it as a context manager).
 from __future__ import annotations
 
 import math
+import shlex
 import shutil
 import signal
 import tempfile
@@ -21,8 +22,10 @@ import numpy as np
 from libsumo import constants as tc
 
 from ..errors import SessionError
+from ..files import make_folder, write_text
 from ..scenario import ScenarioSpec
-from ..sumo_home import sumo_errors
+from ..sumo_home import captured_stderr, error_lines, sumo_errors
+from ..sumo_xml import ends_with_end_tag
 from ..trajectory import Trajectory, TrajectoryState
 from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
@@ -76,8 +79,9 @@ def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | Non
                    collision_file: Path | None = None, log_file: Path | None = None) -> list[str]:
     """The SUMO command line of a session (also written to the run directory for reproduction)."""
     s = spec.sumo
+    route_files = ",".join([*map(str, spec.demand.route_files), str(route_file)])  # the user's vTypes first
     args = [
-        "sumo", "--net-file", str(spec.net_file), "--route-files", str(route_file),
+        "sumo", "--net-file", str(spec.net_file), "--route-files", route_files,
         "--begin", "0", "--end", sumo_number(spec.duration_s), "--step-length", sumo_number(spec.step_s),
         "--seed", str(spec.seed), "--lanechange.duration", sumo_number(s.lanechange_duration_s),
         "--collision.action", "warn", "--collision.check-junctions", "true",
@@ -85,6 +89,8 @@ def sumo_arguments(spec: ScenarioSpec, route_file: Path, *, fcd_file: Path | Non
         "--time-to-teleport", sumo_number(s.time_to_teleport_s) if s.time_to_teleport_s > 0 else "-1",
         "--no-step-log", "true", "--duration-log.disable", "true", "--precision", str(FCD_PRECISION),
     ]
+    if s.additional_files:
+        args += ["--additional-files", ",".join(map(str, s.additional_files))]
     if log_file is not None:
         args += ["--error-log", str(log_file)]
     else:
@@ -157,7 +163,7 @@ class Session:
         if out is None:
             self._tmp = tempfile.mkdtemp(prefix="sumo_rss_")
             out = Path(self._tmp)
-        out.mkdir(parents=True, exist_ok=True)
+        make_folder(out)
         write_route_file(self.spec, out / "routes.rou.xml")
 
         def arguments(folder: Path) -> list[str]:
@@ -174,32 +180,58 @@ class Session:
         note = (f"; its ego is driven by the {ego.controller} planner through libsumo, so plain SUMO runs only the "
                 "background traffic the same way until the ego departs" if driven else
                 "; run it from this folder to reproduce the run with plain SUMO")
-        (out / "sumo_command.txt").write_text(f"# SUMO command line of this run{note}.\n"
-                                              + " ".join(arguments(Path("."))) + "\n", encoding="utf-8")
+        write_text(out / "sumo_command.txt", f"# SUMO command line of this run{note}.\n"
+                   + shlex.join(arguments(Path("."))) + "\n")
         _active = self
         try:
-            with _signals_held():
+            with _signals_held(), captured_stderr() as printed:  # its load warnings are in sumo.log
                 libsumo.start(args)
         except libsumo.TraCIException as exc:
             self.close()
-            reason = sumo_errors(args[1:]) or str(exc)  # libsumo's own message does not say which option
-            raise SessionError(f"SUMO refused to start scenario {self.spec.source}: {reason}") from exc
+            # libsumo's own message does not say which option
+            reason = error_lines(printed) or sumo_errors(args[1:]) or str(exc)
+            extra = f" (with the scenario's sumo.extra_args: {shlex.join(self.spec.sumo.extra_args)})" \
+                if self.spec.sumo.extra_args else ""
+            raise SessionError(f"SUMO refused to start scenario {self.spec.source}{extra}: {reason}") from exc
         self._open = True
         self._signals = tuple(libsumo.trafficlight.getIDList())
 
     def close(self) -> None:
         """Close SUMO (flushing its output files) and release the process-wide slot; idempotent."""
         global _active
-        if self._open:
-            self._open = False
-            libsumo.close()
-            if self.write_fcd and self._ego_derived and self.run_dir is not None:
-                correct_placed_vehicle(self.run_dir / "fcd.xml", str(self.ego_id), self._ego_derived)
-        if _active is self:
-            _active = None
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None
+        try:
+            if self._open:
+                self._open = False
+                libsumo.close()
+                fcd = self.run_dir / "fcd.xml" if self.write_fcd and self.run_dir is not None else None
+                if self._ego_derived and fcd is not None and ends_with_end_tag(fcd, "fcd-export"):
+                    correct_placed_vehicle(fcd, str(self.ego_id), self._ego_derived)
+        finally:
+            if _active is self:
+                _active = None
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
+                self._tmp = None
+
+    def check_outputs(self) -> None:
+        """After :meth:`close`: that SUMO wrote its output files to their end, and logged no error. libsumo has no
+        exit status, and SUMO does not notice a write that fails (a full disk, a file-size limit): its file just
+        ends there. SessionError naming the file otherwise."""
+        if self.run_dir is None:
+            return
+        outputs = {"fcd.xml": "fcd-export" if self.write_fcd else None,
+                   "collisions.xml": "collisions" if self.spec.outputs.collisions_xml else None}
+        for name, root in outputs.items():
+            if root is not None and not (self.run_dir / name).is_file():
+                raise SessionError(f"{self.run_dir / name}: SUMO's output is missing")
+            if root is not None and not ends_with_end_tag(self.run_dir / name, root):
+                raise SessionError(f"{self.run_dir / name}: SUMO's output ends before its end tag </{root}> (it "
+                                   "could not write the whole file: disk full, or a file-size limit?)")
+        log = self.run_dir / "sumo.log"
+        errors = [line.strip() for line in log.read_text(encoding="utf-8", errors="replace").splitlines()
+                  if line.startswith("Error")] if log.is_file() else []
+        if errors:
+            raise SessionError(f"{log}: SUMO reported an error during the run: {' '.join(errors)}")
 
     # -- stepping ------------------------------------------------------------------------------------------
     @property

@@ -14,9 +14,16 @@ from pathlib import Path
 
 import libsumo
 
-from ..errors import SessionError
-from ..sumo_home import sumo_errors
+from ..errors import SessionError, shown
+from ..files import output_error
+from ..sumo_home import captured_stderr, error_lines, sumo_errors
 from . import session
+
+
+# What the audit takes from a vType, within the bounds of a road or rail vehicle [unit]: the longest trains, SUMO's
+# shortest step as the shortest reaction time (and the RSS response time of the krauss preset, at most 10 s).
+VTYPE_BOUNDS = {"length": (0.1, 2000.0, "m"), "width": (0.1, 20.0, "m"), "tau": (0.001, 10.0, "s"),
+                "decel": (0.01, 100.0, "m/s²")}
 
 
 @dataclass(frozen=True)
@@ -43,19 +50,36 @@ def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: st
         root = ET.Element("additional")
         for document in documents:
             root.extend(_vtype_elements(document))
-        ET.ElementTree(root).write(additional, encoding="utf-8")
+        try:
+            ET.ElementTree(root).write(additional, encoding="utf-8")
+        except OSError as exc:  # the temporary folder's disk is full
+            raise output_error(additional, exc) from None
         args = ["--net-file", str(net_file), "--additional-files", str(additional), "--no-warnings", "true"]
         try:
-            libsumo.start(["sumo", *args])
+            with captured_stderr() as printed:
+                libsumo.start(["sumo", *args])
         except libsumo.TraCIException as exc:
-            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({sumo_errors(args) or exc})"
-                             ) from exc
+            reason = error_lines(printed) or sumo_errors(args) or str(exc)
+            raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({reason})") from exc
         try:
             vt = libsumo.vehicletype
-            return {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
-                    for t in vt.getIDList()}
+            types = {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
+                     for t in vt.getIDList()}
         finally:
             libsumo.close()
+    for type_id, parameters in types.items():
+        _check(source or str(net_file), type_id, parameters)
+    return types
+
+
+def _check(source: str, type_id: str, parameters: VTypeParameters) -> None:
+    """ValueError naming the vType and attribute whose value (as SUMO resolved it) no vehicle can have: SUMO
+    accepts a length of 1e300 m, which made gaps of -1e300 m in episodes.csv."""
+    for name, (low, high, unit) in VTYPE_BOUNDS.items():
+        value = getattr(parameters, name)
+        if not low <= value <= high:
+            raise ValueError(f"{source}: vType {shown(type_id)}: {name}: expected a number in [{low:g}, {high:g}] "
+                             f"{unit}, got {value:.6g}")
 
 
 def _vtype_elements(elem: ET.Element) -> list[ET.Element]:
