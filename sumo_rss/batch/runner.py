@@ -154,7 +154,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         started = time.perf_counter()
         network = RoadNetwork.from_file(spec.net_file)
         resolver = param_resolver(spec)
-        auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
+        auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule,
+                          raw_episodes=spec.rss.raw_episodes, junction_brake_min=spec.rss.junction_brake_min)
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)
         report = getattr(driver, "summary", None)  # planner.json, and summary.json's 'planner'
         ego_rows = []

@@ -343,8 +343,8 @@ class FcdReader:
             self._resolution = self._lateral_resolution(rows, lat_pos is not None)
         if lane_pos is None or lat_pos is None:  # SUMO's pos and posLat are those of the front-bumper centre
             s_f, d_f, _ = self.network.frenet(lane, x, y)
-            # SUMO measures pos along the lane's nominal length, which may differ from its shape's length.
-            s_f = s_f * self.network.lane_length[lane] / self.network.shapes.cumulative[lane, -1]
+            # SUMO measures pos along the lane's own length (with elevation), not its 2-D shape's.
+            s_f = self.network.shapes.lane_pos(lane, s_f)
             lane_pos = s_f if lane_pos is None else lane_pos
             lat_pos = d_f if lat_pos is None else lat_pos
         edge = self.network.lane_edge[lane]
@@ -400,14 +400,15 @@ class FcdReader:
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
-              run_id: str = "", signal_rule: bool = True, on_progress: Callable[[int], None] | None = None,
-              stop: Callable[[], bool] | None = None) -> AuditResult:
+              run_id: str = "", signal_rule: bool = True, raw_episodes: bool = False, junction_brake_min: bool = False,
+              on_progress: Callable[[int], None] | None = None, stop: Callable[[], bool] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
     how much of the FCD file (its size on disk) has been read. ``stop()`` is asked after every time step: True ends
-    the audit there, as if the file ended there (with a warning that names the step)."""
+    the audit there, as if the file ended there (with a warning that names the step). ``signal_rule``,
+    ``raw_episodes``, ``junction_brake_min``: as for :class:`Auditor`."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -416,7 +417,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
-    auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
+    auditor = Auditor(network, params, run_id, signal_rule=signal_rule, raw_episodes=raw_episodes,
+                      junction_brake_min=junction_brake_min)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
