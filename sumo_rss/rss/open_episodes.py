@@ -26,6 +26,7 @@ class OpenEpisodes:
     """Open episodes, sorted by key (struct of arrays)."""
 
     keys: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    serial: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # 0, 1, ... in opening order
     a_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     b_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     uids: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))  # of (a, b)
