@@ -21,20 +21,31 @@ def lane_pose(net: RoadNetwork, lane_id: str, pos: float, length: float = LENGTH
     return float(x[0]), float(y[0]), float(np.arctan2(y[0] - y[1], x[0] - x[1]))
 
 
-def road_situations(net: RoadNetwork, cars: list[tuple[str, str, float, float]]) -> PairSituations:
-    """The road situations of cars (id, lane id, SUMO lane position of the front bumper [m], speed [m/s]) driving
-    along their lanes (no lateral motion, routes unknown), ad_rss parameters."""
+def road_situations(net: RoadNetwork, cars: list[tuple], lateral: dict[str, tuple[float, float]] | None = None
+                    ) -> PairSituations:
+    """The road situations of cars (id, lane id, SUMO lane position of the front bumper [m], speed [m/s][, route as
+    edge ids]) driving along their lanes (routes unknown where not given), ad_rss parameters; ``lateral``: per car id,
+    (offset [m], lateral speed [m/s]) to the left of its lane's centre line, its heading turned by its direction of
+    motion."""
     n = len(cars)
-    poses = [lane_pose(net, lane, pos) for _, lane, pos, _ in cars]
+    lateral = lateral or {}
+    offset, lat_speed = (np.array([lateral.get(c[0], (0.0, 0.0))[k] for c in cars]) for k in (0, 1))
+    poses = []
+    for (vid, lane, pos, speed, *_), d, u in zip(cars, offset, lat_speed):
+        x, y, h = lane_pose(net, lane, pos)
+        poses.append((x - np.sin(h) * d, y + np.cos(h) * d, h + np.arctan2(u, speed)))
     lanes = np.array([c[1] for c in cars])
     lane_rows = net.lane_indices(lanes)
+    edges = net.edge_ids[net.lane_edge[lane_rows]]
+    routes = tuple(tuple(c[4]) if len(c) > 4 else () for c in cars)
     snapshot = WorldSnapshot(
         time=0.0, ids=np.array([c[0] for c in cars]), x=np.array([p[0] for p in poses]),
         y=np.array([p[1] for p in poses]), heading=np.array([p[2] for p in poses]),
-        speed=np.array([c[3] for c in cars], dtype=float), accel=np.zeros(n), lat_speed=np.zeros(n),
-        length=np.full(n, LENGTH), width=np.full(n, WIDTH), lane_id=lanes,
-        edge_id=net.edge_ids[net.lane_edge[lane_rows]], lane_index=net.lane_index[lane_rows],
-        lane_pos=np.array([c[2] for c in cars], dtype=float), lat_pos=np.zeros(n), vclass=np.full(n, "background"),
-        vtype=np.full(n, "car"), signals=np.zeros(n, int), route_index=np.full(n, -1), route_edges=None)
+        speed=np.array([c[3] for c in cars], dtype=float), accel=np.zeros(n), lat_speed=lat_speed,
+        length=np.full(n, LENGTH), width=np.full(n, WIDTH), lane_id=lanes, edge_id=edges,
+        lane_index=net.lane_index[lane_rows], lane_pos=np.array([c[2] for c in cars], dtype=float), lat_pos=offset,
+        vclass=np.full(n, "background"), vtype=np.full(n, "car"), signals=np.zeros(n, int),
+        route_index=np.array([r.index(e) if e in r else -1 for r, e in zip(routes, edges)]),
+        route_edges=routes if any(routes) else None)
     params = RssParamArrays.stack([preset_params("ad_rss", "background")] * n)
     return evaluate(snapshot, vehicle_frame(snapshot, net, params, RouteTable(net).remaining(snapshot)), net)

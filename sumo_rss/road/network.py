@@ -101,9 +101,14 @@ class RoadNetwork:
         edge_length = np.array([max(lane.getLength() for lane in e.getLanes()) for e in edges])
         lane_edge = np.array([edge_index[lane.getEdge().getID()] for lane in lanes])
         lane_length = np.array([lane.getLength() for lane in lanes])
+        # Distances between edges follow the lanes vehicles drive: not sidewalks, walking areas and crossings (a
+        # junction's walking area is often the shortest way from a sidewalk to the next edge: DRT's 945141561 read
+        # 2.70 m through it for a 3.59 m internal lane).
+        walkway = np.array([lane.getPermissions() <= {"pedestrian"} for lane in lanes])
         edge_succ = [set() for _ in edges]
         for k, nxt in enumerate(successors):
-            edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt)
+            if not walkway[k]:
+                edge_succ[lane_edge[k]].update(int(lane_edge[j]) for j in nxt if not walkway[j])
         lane_ids = np.array([lane.getID() for lane in lanes], dtype=str)
         shapes = LaneShapes.from_polylines(_centre_lines(lanes, successors), lane_length)
         lane_index = np.array([lane.getIndex() for lane in lanes])
