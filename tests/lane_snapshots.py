@@ -25,15 +25,16 @@ def road_situations(net: RoadNetwork, cars: list[tuple], lateral: dict[str, tupl
                     ) -> PairSituations:
     """The road situations of cars (id, lane id, SUMO lane position of the front bumper [m], speed [m/s][, route as
     edge ids]) driving along their lanes (routes unknown where not given), ad_rss parameters; ``lateral``: per car id,
-    (offset [m], lateral speed [m/s]) to the left of its lane's centre line, its heading turned by its direction of
-    motion."""
+    (offset [m], lateral speed [m/s][, body turn [rad]]) to the left of its lane's centre line, its heading turned by
+    its direction of motion (or by the body turn where given, as SUMO turns a car changing lanes)."""
     n = len(cars)
     lateral = lateral or {}
     offset, lat_speed = (np.array([lateral.get(c[0], (0.0, 0.0))[k] for c in cars]) for k in (0, 1))
     poses = []
     for (vid, lane, pos, speed, *_), d, u in zip(cars, offset, lat_speed):
         x, y, h = lane_pose(net, lane, pos)
-        poses.append((x - np.sin(h) * d, y + np.cos(h) * d, h + np.arctan2(u, speed)))
+        turn = lateral[vid][2] if len(lateral.get(vid, ())) > 2 else np.arctan2(u, speed)
+        poses.append((x - np.sin(h) * d, y + np.cos(h) * d, h + turn))
     lanes = np.array([c[1] for c in cars])
     lane_rows = net.lane_indices(lanes)
     edges = net.edge_ids[net.lane_edge[lane_rows]]

@@ -191,7 +191,8 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         lane = lane.copy()
         lane[k] = _innermost_lane(network)[network.edge_opposite[network.lane_edge[lane[k]]]]
         s, d = s.copy(), d.copy()
-        s[k], d[k], _ = network.frenet(lane[k], cx[k], cy[k])
+        lane_heading = lane_heading.copy()
+        s[k], d[k], lane_heading[k] = network.frenet(lane[k], cx[k], cy[k])
         lane_pos = lane_pos.copy()
         lane_pos[k] = network.shapes.lane_pos(lane[k], s[k]) + 0.5 * snapshot.length[k]
     # SUMO's speed is along the lane and its lateral speed across it: the lane frame's velocity as it is. (The
@@ -200,7 +201,12 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     speed = np.hypot(v_lon, v_lat)
     # The footprint turns with the direction of motion; a car standing still lies along its lane (the direction of
     # noise-level lateral speeds, such as a placed ego's 1e-5 m/s, turned a stopped car across the road).
-    theta = np.where(speed < FOOTPRINT_MIN_SPEED, 0.0, np.arctan2(v_lat, np.maximum(v_lon, 0.0)))
+    # It turns no further than SUMO turned the body (its angle against the lane): a car changing lanes at a
+    # standstill moves only sideways, and its footprint across the road doubled its width (DRT: a lateral gap of
+    # −3.35 m for a car beside it whose body SUMO turned 18°).
+    motion = np.where(speed < FOOTPRINT_MIN_SPEED, 0.0, np.arctan2(v_lat, np.maximum(v_lon, 0.0)))
+    body = np.abs(wrap_angle(snapshot.heading - lane_heading))
+    theta = np.sign(motion) * np.minimum(np.abs(motion), body)
     half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
     forward = np.maximum(v_lon, 0.0)
     return VehicleFrame(
