@@ -32,6 +32,8 @@ test: install
 
 acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios on 2 processes, ~12 minutes)
 	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_closed_loop.py -rxX
+	# the real-network invariants on a Monaco-size run, where $$SUMO_RSS_REALNETS (default /work/realnets) has one
+	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_real_networks_acceptance.py -rs
 
 bench: install
 	$(BIN)/python bench/run_all.py

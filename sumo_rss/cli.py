@@ -212,6 +212,12 @@ def build_parser() -> argparse.ArgumentParser:
                             "sensor; [rss] hold_standing in scenarios)")
     audit.add_argument("--no-signal-rule", action="store_true",
                        help="do not report red-light / avoidable yellow-light entries as violations")
+    audit.add_argument("--raw-episodes", action="store_true",
+                       help="an episode that re-opens within the pair's response time of its end is a new episode "
+                            "(default: it continues the previous one; docs/rss.md)")
+    audit.add_argument("--junction-brake-min", action="store_true",
+                       help="a car owing braking at a junction must brake at b_min until stopped even if it stops "
+                            "before the conflict area (ad_rss's reading; default: a car that stays out complied)")
     audit.add_argument("--ego", action="append", default=[], metavar="ID",
                        help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
@@ -401,15 +407,19 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         f"{len(junctions.conflicts)} conflict areas ready in {time.perf_counter() - started:.1f} s")
     vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.scenario is not None:
-        if args.rss_preset or args.hold_standing or args.no_signal_rule:
-            raise SumoRssError("--scenario sets the RSS parameters: leave out --rss-preset, --hold-standing and "
-                               "--no-signal-rule")
+        if args.rss_preset or args.hold_standing or args.no_signal_rule or args.raw_episodes or \
+                args.junction_brake_min:
+            raise SumoRssError("--scenario sets the RSS parameters and rules: leave out --rss-preset, "
+                               "--hold-standing, --no-signal-rule, --raw-episodes and --junction-brake-min")
         spec = load_scenario(args.scenario)
-        resolver, signal_rule = param_resolver(spec), spec.rss.signal_rule
+        resolver = param_resolver(spec)
+        rules = dict(signal_rule=spec.rss.signal_rule, raw_episodes=spec.rss.raw_episodes,
+                     junction_brake_min=spec.rss.junction_brake_min)
     else:
         resolver = ParamResolver(args.rss_preset or "ad_rss", vtype_dynamics=vehicles.dynamics,
                                  hold_standing=args.hold_standing)
-        signal_rule = not args.no_signal_rule
+        rules = dict(signal_rule=not args.no_signal_rule, raw_episodes=args.raw_episodes,
+                     junction_brake_min=args.junction_brake_min)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     # Shown from 0.5 s on: not for a short audit, nor before an error in the file's first steps.
@@ -427,8 +437,8 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         recorder = TrajectoryRecorder(args.net)  # every vehicle: what 'sumo-rss view' replays, without the FCD
         result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                            collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop,
-                           record_states=True, on_snapshot=recorder.add)
+                           run_id=run_id, **rules, on_progress=on_progress, stop=stop, record_states=True,
+                           on_snapshot=recorder.add)
         if not stop.requested:
             bar.update(bar.total - bar.n)  # read to its end
     result.to_csv(args.out, also={TRAJECTORY_FILE: recorder.write})

@@ -198,7 +198,8 @@ class ScenarioSpec:
                        "flows": [{**_plain(asdict(f)), "depart_lane": lane(f.depart_lane)}
                                  for f in self.demand.flows]},
             "rss": {"preset": self.rss.preset, "signal_rule": self.rss.signal_rule,
-                    "hold_standing": self.rss.hold_standing, **self.rss.role_overrides,
+                    "hold_standing": self.rss.hold_standing, "raw_episodes": self.rss.raw_episodes,
+                    "junction_brake_min": self.rss.junction_brake_min, **self.rss.role_overrides,
                     "vtypes": dict(self.rss.vtype_overrides)},
             "outputs": _plain(asdict(self.outputs)),
         }

@@ -1,5 +1,5 @@
-"""The ``[rss]`` table of a scenario file: preset, per-role and per-vType parameter overrides, signal rule and
-hold_standing, validated so that every vehicle class resolves to consistent RSS parameters (docs/scenarios.md)."""
+"""The ``[rss]`` table of a scenario file: preset, per-role and per-vType parameter overrides, signal rule,
+hold_standing and the episode and junction-response rules, validated so that every vehicle class resolves to consistent RSS parameters (docs/scenarios.md)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -19,12 +19,15 @@ class RssSpec:
     role_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
     vtype_overrides: dict[str, dict[str, float]] = field(default_factory=dict)
     hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
+    raw_episodes: bool = False  # an episode re-opening within ρ of its end is a new one (default: it continues)
+    junction_brake_min: bool = False  # ad_rss's reading: a yielding car brakes at b_min even if it stops before
 
 
 def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
     preset = t.string("preset", "ad_rss", choices=PRESETS)
     signal_rule = t.boolean("signal_rule", True)
     hold_standing = t.boolean("hold_standing", False)
+    raw_episodes, junction_brake_min = t.boolean("raw_episodes", False), t.boolean("junction_brake_min", False)
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
     vtype_ids = {v.id for v in demand.vtypes}
     by_vtype = {}
@@ -34,7 +37,7 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec
                           name)
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
-    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing)
+    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing, raw_episodes, junction_brake_min)
     problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
     if problem is not None:
         raise t.error(*problem)

@@ -4,6 +4,11 @@ Lane shapes are stored padded in one array (lanes × points), so that any number
 lane, is projected in one numpy pass. The first and last segment of every lane extend beyond its ends, so a
 point before the start of a lane gets s < 0 and one after its end s > length (the frame of a lane continues
 straight ahead and behind it).
+
+Two distances along a lane: *shape metres* (s, along the 2-D centre line, what projections give) and SUMO's *lane
+positions* (``pos``, along the lane's own length, which includes elevation: SUMO places position ``pos`` at
+``pos * length3d / length`` along the 3-D shape, so on a slope, and on the inner lanes of a curved edge, the two
+differ). :meth:`LaneShapes.lane_pos` and :meth:`LaneShapes.shape_s` convert between them.
 """
 from __future__ import annotations
 
@@ -22,21 +27,40 @@ class LaneShapes:
 
     points: np.ndarray  # [lanes, max_points, 2]
     count: np.ndarray  # [lanes] number of points (>= 2)
-    cumulative: np.ndarray  # [lanes, max_points] distance along the lane at each point [m]
+    cumulative: np.ndarray  # [lanes, max_points] distance along the lane's 2-D shape at each point [m]
+    positions: np.ndarray  # [lanes, max_points] SUMO's lane position of each point [m]
 
     @classmethod
-    def from_polylines(cls, polylines: list[np.ndarray]) -> LaneShapes:
+    def from_polylines(cls, polylines: list[np.ndarray], lengths: np.ndarray | None = None) -> LaneShapes:
+        """Shapes from polylines of (x, y) or (x, y, z) points [m]; ``lengths``: SUMO's length of each lane [m]
+        (default: its 2-D shape's), which SUMO spreads over the 3-D shape (:meth:`lane_pos`)."""
         count = np.array([len(p) for p in polylines], dtype=int)
         if np.any(count < 2):
             raise ValueError("every lane shape needs at least two points")
         width = int(count.max())
-        points = np.zeros((len(polylines), width, 2))
+        points = np.zeros((len(polylines), width, 3))
         for k, poly in enumerate(polylines):
-            points[k, : len(poly)] = poly
-            points[k, len(poly):] = poly[-1]  # padding repeats the end point: zero-length segments
-        seg = np.linalg.norm(np.diff(points, axis=1), axis=2)
-        cumulative = np.concatenate([np.zeros((len(polylines), 1)), np.cumsum(seg, axis=1)], axis=1)
-        return cls(points, count, cumulative)
+            poly = np.asarray(poly, dtype=float)
+            points[k, : len(poly), : poly.shape[1]] = poly
+            points[k, len(poly):] = points[k, len(poly) - 1]  # padding repeats the end point: zero-length segments
+        cumulative = _cumulative(points[..., :2])
+        if lengths is None:
+            return cls(points[..., :2], count, cumulative, cumulative)
+        along_3d = _cumulative(points)
+        total_3d = along_3d[:, -1:]
+        positions = np.where(total_3d > 0.0, along_3d * np.asarray(lengths, dtype=float)[:, None] /
+                             np.where(total_3d > 0.0, total_3d, 1.0), cumulative)
+        return cls(points[..., :2], count, cumulative, positions)
+
+    def lane_pos(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """SUMO lane positions [m] of the points ``s`` shape metres along lanes ``lane`` (beyond a lane's ends at
+        the rate of its first or last segment)."""
+        return _along(self.cumulative, self.positions, self.count, np.asarray(lane, dtype=int), s)
+
+    def shape_s(self, lane: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Shape metres along lanes ``lane`` [m] of SUMO lane positions ``pos`` [m] (the inverse of
+        :meth:`lane_pos`)."""
+        return _along(self.positions, self.cumulative, self.count, np.asarray(lane, dtype=int), pos)
 
     def project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, s_hint: np.ndarray | None = None,
                 window: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -146,3 +170,25 @@ def _chunks(n_seg: np.ndarray, budget: int) -> list[int]:
     if bounds[-1] != len(n_seg):
         bounds.append(len(n_seg))
     return bounds
+
+
+def _cumulative(points: np.ndarray) -> np.ndarray:
+    """[lanes, points] distance along each padded polyline at each of its points [m]."""
+    seg = np.linalg.norm(np.diff(points, axis=1), axis=2)
+    return np.concatenate([np.zeros((points.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+
+
+def _along(source: np.ndarray, target: np.ndarray, count: np.ndarray, lane: np.ndarray, value: Any) -> np.ndarray:
+    """Map ``value`` from one measure along lanes (``source`` [lanes, points], non-decreasing per lane) to another
+    (``target``): piecewise linear between the lanes' points; beyond a lane's ends at the rate of its first or
+    last segment (of the whole lane where that segment has no length in ``source``)."""
+    value = np.asarray(value, dtype=float)
+    src, dst = source[lane], target[lane]
+    last = count[lane] - 1
+    k = np.clip((src <= value[:, None]).sum(axis=1) - 1, 0, last - 1)
+    rows = np.arange(len(lane))
+    x0, x1, y0, y1 = src[rows, k], src[rows, k + 1], dst[rows, k], dst[rows, k + 1]
+    total_x, total_y = src[rows, last], dst[rows, last]
+    whole = np.where(total_x > 0.0, total_y / np.where(total_x > 0.0, total_x, 1.0), 1.0)
+    rate = np.where(x1 > x0, (y1 - y0) / np.where(x1 > x0, x1 - x0, 1.0), whole)
+    return y0 + (value - x0) * rate

@@ -48,7 +48,7 @@ class ConflictArea:
     a_end: float
     b_start: float
     b_end: float
-    kind: str  # 'crossing' or 'merging' (both links lead into the same lane)
+    kind: str  # 'merging' (both links lead into the same lane), 'diverging' (both come from the same lane) or 'crossing'
     static_priority: str  # 'a', 'b' or 'same', from SUMO's junction logic
 
 
@@ -72,6 +72,7 @@ class JunctionModel:
     static_priority: LinkPairs  # [L, L] +1: the first link has priority, -1: it yields, 0: same
     link_to_lane: np.ndarray  # [L] lane the link leads into
     link_length: np.ndarray  # [L] length of the link's internal path [m]
+    area_crossing: np.ndarray  # [areas] its two links cross there (they share no lane before or after it)
 
     @classmethod
     def from_file(cls, path: str | Path, network: RoadNetwork) -> JunctionModel:
@@ -142,7 +143,8 @@ class JunctionModel:
                    np.array([link.tls_index for link in links], dtype=int),
                    area_index, area_start, area_end, static_priority,
                    np.array([link.to_lane for link in links], dtype=int),
-                   np.array([link.length for link in links], dtype=float))
+                   np.array([link.length for link in links], dtype=float),
+                   np.array([c.kind == "crossing" for c in conflicts], dtype=bool))
 
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
@@ -203,7 +205,7 @@ def _conflict_areas(links: list[Link], network: RoadNetwork, foes: dict[str, lis
         a_yields = prohibits[la.junction][la.index][n - 1 - lb.index] == "1"
         b_yields = prohibits[la.junction][lb.index][n - 1 - la.index] == "1"
         priority = "b" if a_yields and not b_yields else "a" if b_yields and not a_yields else "same"
-        kind = "merging" if la.to_lane == lb.to_lane else "crossing"
+        kind = "merging" if la.to_lane == lb.to_lane else "diverging" if la.from_lane == lb.from_lane else "crossing"
         areas.append(ConflictArea(f"{la.junction}:{la.index}x{lb.index}", a, b, *interval_a, *interval_b, kind,
                                   priority))
     return areas

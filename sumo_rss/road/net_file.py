@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.parsers import expat
 
+from sumolib.net.lane import get_allowed
+
 SUMO_LANE_WIDTH = 3.2  # [m] a lane's width where the network does not give one (SUMO's and sumolib's default)
 LOADED_FUNCTIONS = frozenset(("", "internal", "crossing", "walkingarea"))  # the edges read ('connector' is not)
 _PEDESTRIAN_ONLY = ("walkingarea", "crossing")
@@ -92,12 +94,14 @@ class NetEdge:
 
 
 class NetLane:
-    __slots__ = ("_edge", "_index", "_id", "_speed", "_length", "_width", "_shape", "_outgoing")
+    __slots__ = ("_edge", "_index", "_id", "_speed", "_length", "_width", "_shape", "_outgoing", "_allow", "_disallow")
 
-    def __init__(self, edge: NetEdge, speed: float, length: float, width: float, shape: str):
+    def __init__(self, edge: NetEdge, speed: float, length: float, width: float, shape: str,
+                 allow: str | None = None, disallow: str | None = None):
         self._edge, self._index = edge, len(edge._lanes)
         self._id = f"{edge._id}_{self._index}"
         self._speed, self._length, self._width, self._shape = speed, length, width, shape
+        self._allow, self._disallow = allow, disallow
         self._outgoing: list[NetConnection] = []
         edge._lanes.append(self)
 
@@ -128,6 +132,10 @@ class NetLane:
                 raise ValueError(f"lane {self._id}: invalid shape point {point!r}, expected x,y or x,y,z")
             points.append((float(xyz[0]), float(xyz[1])))
         return points
+
+    def getPermissions(self) -> set[str]:
+        """The vehicle classes the lane permits (its ``allow`` / ``disallow``, as sumolib reads them)."""
+        return get_allowed(self._allow, self._disallow)
 
     def getOutgoing(self) -> list[NetConnection]:
         """The connections that leave this lane, in file order."""
@@ -283,7 +291,8 @@ class _NetHandler:
         if name == "lane":
             if self._edge is not None:
                 NetLane(self._edge, float(attrs["speed"]), float(attrs["length"]),
-                        float(attrs.get("width", SUMO_LANE_WIDTH)), attrs.get("shape", ""))
+                        float(attrs.get("width", SUMO_LANE_WIDTH)), attrs.get("shape", ""), attrs.get("allow"),
+                        attrs.get("disallow"))
         elif name == "connection":
             self._connection(attrs)
         elif name == "edge":

@@ -21,7 +21,7 @@ from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
 from .params import RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
-from .intersection import intersection_situations
+from .intersection import KIND_SIGNAL, intersection_situations
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
 
@@ -146,11 +146,16 @@ class Auditor:
     """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
-                 trace_class: str | None = None, signal_rule: bool = True, record_states: bool = False):
+                 trace_class: str | None = None, signal_rule: bool = True, raw_episodes: bool = False,
+                 junction_brake_min: bool = False, record_states: bool = False):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
-        avoidable yellow-light entries as violations (docs/rss.md). ``record_states``: record every episode's
-        steps, with the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer)."""
+        avoidable yellow-light entries as violations (docs/rss.md). ``raw_episodes``: an episode that re-opens
+        within the pair's ρ of its end is a new one (default: it continues the previous one).
+        ``junction_brake_min``: a car owing braking at a junction must brake at b_min after ρ until stopped
+        however far before the conflict area it stops, as ad_rss reads the response (default: a car that never
+        enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
+        the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
@@ -161,7 +166,7 @@ class Auditor:
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
-        self._tracker = ResponsibilityTracker(run_id)
+        self._tracker = ResponsibilityTracker(run_id, join=not raw_episodes, stay_out_complies=not junction_brake_min)
         self._uid: dict[str, int] = {}
         self._routes = RouteTable(network)
         self._prev_ids: set[str] = set()
@@ -261,4 +266,5 @@ def _area_rules(keys: np.ndarray, number: np.ndarray, crossing: PairSituations, 
     order = np.lexsort((margin, ~crossing.dangerous, number, keys))
     ordered = area_keys[order]
     first = order[np.r_[True, ordered[1:] != ordered[:-1]]]
-    return AreaRules(area_keys[first], crossing.safe_rules[first], crossing.priority[first])
+    return AreaRules(area_keys[first], crossing.safe_rules[first], crossing.priority[first],
+                     crossing.kind[first] == KIND_SIGNAL)

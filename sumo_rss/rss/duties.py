@@ -7,8 +7,8 @@ both safe → both responses; a pair that appears already dangerous (a car enter
 no road situation at the previous step: a ramp car reaching the motorway's edge beside a car) owes the
 longitudinal response unless the cars overlap longitudinally, then the lateral one.
 Intersections: able-to-stop held → the car(s) without priority under that step's priority brake (a signal that
-changes at t_b does not turn the car that was allowed through into the one that yields), a priority car may
-drive on; in-front held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap,
+changes at t_b does not turn the car that was allowed through into the one that yields; but where the signals gave
+no priority then, as at an all-red step, and give it now, the signals now decide), a priority car may drive on; in-front held → the rear car brakes (both, if neither is in front at t_b); otherwise (no time overlap,
 or dangerous when first seen) both brake.
 """
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .intersection import KIND_SIGNAL
 from .situations import (FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_LAT, RULE_LON,
                          SAME_DIRECTION_CODES, PairSituations)
 
@@ -43,18 +44,20 @@ def _join(*parts: np.ndarray) -> np.ndarray:
 
 
 def duties_at_threshold(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, prev_priority: np.ndarray,
-                        seen: np.ndarray, appeared: np.ndarray) -> Duties:
-    """Duties of the pairs ``rows`` of ``sit`` that became dangerous now; ``prev_rules``: RULE_* bits and
-    ``prev_priority`` (as ``PairSituations.priority``) at the step before (valid where ``seen``); ``appeared``: a
-    car of the pair entered the data this step."""
+                        seen: np.ndarray, appeared: np.ndarray, prev_by_signal: np.ndarray | None = None) -> Duties:
+    """Duties of the pairs ``rows`` of ``sit`` that became dangerous now; ``prev_rules``: RULE_* bits,
+    ``prev_priority`` (as ``PairSituations.priority``) and ``prev_by_signal`` (the signals decided it; None: they
+    did) at the step before (valid where ``seen``); ``appeared``: a car of the pair entered the data this step."""
+    if prev_by_signal is None:
+        prev_by_signal = np.ones(len(rows), dtype=bool)
     kind = sit.kind[rows]
     crossing = kind >= FIRST_INTERSECTION_CODE
     if not crossing.any():
         return _road_duties(sit, rows, prev_rules, seen, appeared)
     if crossing.all():
-        return _intersection_duties(sit, rows, prev_rules, prev_priority, seen, appeared)
+        return _intersection_duties(sit, rows, prev_rules, prev_priority, prev_by_signal, seen, appeared)
     road = _road_duties(sit, rows, prev_rules, seen, appeared)
-    junction = _intersection_duties(sit, rows, prev_rules, prev_priority, seen, appeared)
+    junction = _intersection_duties(sit, rows, prev_rules, prev_priority, prev_by_signal, seen, appeared)
     pick = crossing[:, None]
     return Duties(*(np.where(pick if getattr(road, f).ndim == 2 else crossing, getattr(junction, f), getattr(road, f))
                     for f in ("must_brake", "front_limited", "brake_correct", "owed_lat", "trigger", "roles",
@@ -93,14 +96,17 @@ def _road_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, 
 
 
 def _intersection_duties(sit: PairSituations, rows: np.ndarray, prev_rules: np.ndarray, prev_priority: np.ndarray,
-                         seen: np.ndarray, appeared: np.ndarray) -> Duties:
+                         prev_by_signal: np.ndarray, seen: np.ndarray, appeared: np.ndarray) -> Duties:
     n = len(rows)
     rules = np.where(seen, prev_rules, 0)
     able = (rules & RULE_ABLE_TO_STOP) > 0
     in_front = ~able & ((rules & RULE_IN_FRONT) > 0)
-    # Who yields is decided by the priority under which 'able to stop' held (the step before t_b).
+    # Who yields is decided by the priority under which 'able to stop' held (the step before t_b), unless the
+    # signals give it now and did not then: after an all-red step, where both lights were red and the junction's
+    # static right of way stood in, the light that turned green decides (the car approaching its red yields).
     now = sit.priority[rows] if sit.priority is not None else np.zeros(n, dtype=np.int8)
-    priority = np.where(seen, prev_priority, now)
+    by_signal_now = sit.kind[rows] == KIND_SIGNAL
+    priority = np.where(seen & (prev_by_signal | ~by_signal_now), prev_priority, now)
     yielding = np.column_stack([priority != 1, priority != 2])  # equal priority: both yield
     # Safe by 'in front' before t_b: the rear car brakes; if neither car is in front at t_b (they overlap on the
     # virtual line), there is no rear car and both do, as ad_rss's BrakeMin for both.

@@ -381,8 +381,8 @@ class FcdReader:
                                             lat_speed is None)
         if fronts is not None:  # SUMO's pos and posLat are those of the front-bumper centre
             s_f, d_f, _ = fronts
-            # SUMO measures pos along the lane's nominal length, which may differ from its shape's length.
-            s_f = s_f * self.network.lane_length[lane] / self.network.shapes.cumulative[lane, -1]
+            # SUMO measures pos along the lane's own length (with elevation), not its 2-D shape's.
+            s_f = self.network.shapes.lane_pos(lane, s_f)
             lane_pos = s_f if lane_pos is None else lane_pos
             lat_pos = d_f if lat_pos is None else lat_pos
         edge = self.network.lane_edge[lane]
@@ -448,7 +448,8 @@ class AuditProgress:
 
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
-              run_id: str = "", signal_rule: bool = True, on_progress: Callable[[AuditProgress], None] | None = None,
+              run_id: str = "", signal_rule: bool = True, raw_episodes: bool = False, junction_brake_min: bool = False,
+              trace_class: str | None = None, on_progress: Callable[[AuditProgress], None] | None = None,
               stop: Callable[[], bool] | None = None, record_states: bool = False,
               on_snapshot: Callable[[WorldSnapshot], None] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
@@ -456,8 +457,9 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(AuditProgress)`` is called after
     every time step. ``stop()`` is asked after every time step: True ends the audit there, as if the file ended
-    there (with a warning that names the step). ``record_states``: as :class:`Auditor`'s. ``on_snapshot(snapshot)``:
-    after every audited time step (e.g. a viewer's recorder)."""
+    there (with a warning that names the step). ``signal_rule``, ``raw_episodes``, ``junction_brake_min``,
+    ``trace_class``, ``record_states``: as for :class:`Auditor`. ``on_snapshot(snapshot)``: after every audited time
+    step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -468,7 +470,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
-    auditor = Auditor(network, params, run_id, signal_rule=signal_rule, record_states=record_states)
+    auditor = Auditor(network, params, run_id, trace_class=trace_class, signal_rule=signal_rule,
+                      raw_episodes=raw_episodes, junction_brake_min=junction_brake_min, record_states=record_states)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0

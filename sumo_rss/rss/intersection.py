@@ -11,10 +11,11 @@ safe if any of three conditions holds:
 3. *no time overlap*: one car's earliest arrival (accelerating during ρ, then braking at b_min) comes after the
    other's latest exit (braking at b_max from now), or neither can arrive at all.
 
-Formulas follow ad_rss 5.0.0 number for number, with three deliberate differences (docs/rss.md): with equal
+Formulas follow ad_rss 5.0.0 number for number, with four deliberate differences (docs/rss.md): with equal
 priority condition 1 needs *both* cars able to stop (ad_rss accepts either), each car's own speed cap is used in
-condition 3 (ad_rss applies the ego's cap to both), and a car that has fully left the conflict area is out of the
-situation (:func:`intersection_situations`). All functions broadcast over numpy arrays.
+condition 3 (ad_rss applies the ego's cap to both), a car that has fully left the conflict area is out of the
+situation (:func:`intersection_situations`), and where the paths cross (rather than merge or diverge) condition 2
+asks the car behind to be able to stop before the area. All functions broadcast over numpy arrays.
 """
 from __future__ import annotations
 
@@ -88,8 +89,12 @@ class IntersectionSafety:
 
 def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a: Any,
                         v_b: Any, enter_b: Any, exit_b: Any, length_b: Any, p_b: Any,
-                        priority: Any) -> IntersectionSafety:
-    """Evaluate the three conditions. Speeds ≥ 0 [m/s]; distances and lengths [m]; ``priority`` PRIORITY_*."""
+                        priority: Any, crossing: Any = False) -> IntersectionSafety:
+    """Evaluate the three conditions. Speeds ≥ 0 [m/s]; distances and lengths [m]; ``priority`` PRIORITY_*.
+    ``crossing``: the two paths cross in the area (False: ad_rss's virtual line throughout). There the car in front
+    is an obstacle across the other's path, not a leader along it: the one behind it on the virtual line is at a
+    safe distance only if it can stop before the area (its d_enter against a standing front car); the virtual line
+    measured a left-turner standing 7.4 m into the area as 7.4 m further ahead of the oncoming car than it was."""
     enter_a, enter_b = np.asarray(enter_a, dtype=float), np.asarray(enter_b, dtype=float)
     priority = np.asarray(priority)
     # 1. Able to stop before the area (a car inside can not).
@@ -99,9 +104,12 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
     a_front = enter_b > enter_a + np.asarray(length_a)
     b_front = enter_a > enter_b + np.asarray(length_b)
-    gap = np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b)
-    d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a, p_b, p_a),
-                     lon_safe_distance_same_dir(v_a, v_b, p_a, p_b))
+    crossing = np.asarray(crossing, dtype=bool)
+    gap = np.where(crossing, np.maximum(np.where(a_front, enter_b, enter_a), 0.0),
+                   np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b))
+    v_a_lead, v_b_lead = (np.where(crossing, 0.0, v) for v in (v_a, v_b))
+    d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a_lead, p_b, p_a),
+                     lon_safe_distance_same_dir(v_a, v_b_lead, p_a, p_b))
     in_front = (a_front | b_front) & is_safe_distance(gap, d_min)
     # 3. No time overlap: earliest arrival of one after the latest exit of the other.
     arrive_a = time_to_cover(v_a, np.maximum(enter_a, 0.0), p_a.response_time, p_a.lon_accel_max,
@@ -227,7 +235,7 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     p = frame.params
     p_a, p_b = p.take(ra), p.take(rb)
     safety = intersection_safety(v_a, enter_a, exit_a, length[ra], p_a, v_b, enter_b, exit_b, length[rb], p_b,
-                                 priority)
+                                 priority, junctions.area_crossing[junctions.area_index[la, lb]])
     rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
              safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
     # Margin of the yielding car (with equal priority, of the one deeper in trouble): distance to the area minus
@@ -243,4 +251,5 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
         v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, need_a, need_b), lat_d_min=nan,
         lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
         in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
-        area=np.array([junctions.conflicts[k].id for k in junctions.area_index[la, lb]], dtype=object))
+        area=np.array([junctions.conflicts[k].id for k in junctions.area_index[la, lb]], dtype=object),
+        enter_a=enter_a, enter_b=enter_b)

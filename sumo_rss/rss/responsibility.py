@@ -7,8 +7,7 @@ pairs that are dangerous *now*.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,25 +15,15 @@ import pandas as pd
 
 from .params import RssParamArrays
 from .duties import duties_at_threshold
-from .records import EPISODE_COLUMNS, VIOLATION_COLUMNS, RecordTable
+from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
+from .episode_log import EpisodeLog, join_records
+from .records import VIOLATION_COLUMNS, RecordTable
+from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
 EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
 STOPPED_SPEED = 0.05  # [m/s] below this a car counts as stopped
 TIME_EPS = 1e-9  # [s]
-
-
-class Constraint(str, Enum):
-    """One rule of a proper response (values go into violations.csv)."""
-
-    ACCEL_DURING_RESPONSE = "lon-accel-during-response-time"  # a ≤ a_acc during ρ
-    BRAKE_AFTER_RESPONSE = "lon-brake-after-response-time"  # a ≤ −b (b_min or b_corr) after ρ, until stopped
-    BRAKE_BEYOND_MAX = "lon-brake-beyond-max"  # front car: a ≥ −b_max
-    LATERAL_ENVELOPE = "lat-speed-envelope"  # lateral speed towards the other within the braking envelope
-
-
-CONSTRAINTS = tuple(Constraint)
-N_CONSTRAINTS = len(CONSTRAINTS)
 
 
 @dataclass
@@ -73,53 +62,7 @@ class AreaRules:
     keys: np.ndarray
     rules: np.ndarray  # int8
     priority: np.ndarray  # int8
-
-
-@dataclass
-class _Episodes:
-    """Open episodes, sorted by key (struct of arrays)."""
-
-    keys: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    serial: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # 0, 1, ... in opening order
-    a_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    b_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    uids: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))  # of (a, b)
-    a_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    b_class: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    t_b: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    t_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    must_brake: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
-    front_limited: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
-    brake_correct: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
-    owed_lat: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
-    trigger: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    roles: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
-    owed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
-    area: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
-    u0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # lateral speed towards the other at t_b
-    lat_settled: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))  # ≤ 0 after ρ once
-    min_lon_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    min_lat_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    responsible: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
-    active: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS), dtype=bool))
-    v_start: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
-    v_last: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
-    v_worst: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
-    v_bound: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, N_CONSTRAINTS)))
-    v_excess: np.ndarray = field(default_factory=lambda: np.full((0, 2, N_CONSTRAINTS), -np.inf))
-
-    def take(self, index: np.ndarray) -> _Episodes:
-        return _Episodes(**{name: value[index] for name, value in vars(self).items()})
-
-    @staticmethod
-    def concat(parts: list[_Episodes]) -> _Episodes:
-        names = vars(parts[0]).keys()
-        return _Episodes(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names})
-
-    def __len__(self) -> int:
-        return int(self.keys.shape[0])
+    by_signal: np.ndarray  # bool: the signals decided the priority
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,23 +110,28 @@ def lateral_speed_bound(u0: Any, tau: Any, rho: Any, a_lat: Any, b_lat: Any) -> 
 
 
 class ResponsibilityTracker:
-    """Rolls the per-pair state forward one step at a time and collects closed episodes and violations."""
+    """Rolls the per-pair state forward one step at a time and collects closed episodes and violations.
 
-    def __init__(self, run_id: str = ""):
+    ``join``: an episode that re-opens within the pair's ρ of its end continues it (:mod:`.episode_log`); False:
+    raw episodes. ``stay_out_complies``: a car that owes braking at a junction and never enters the conflict area
+    while the episode lasts complied (the intersection response exists so that it does not enter); False: ad_rss's
+    reading, braking at b_min after ρ until stopped however far from the area it stops."""
+
+    def __init__(self, run_id: str = "", join: bool = True, stay_out_complies: bool = True):
         self.run_id = run_id
-        self._episodes = RecordTable(EPISODE_COLUMNS)
+        self.stay_out_complies = stay_out_complies
+        self._log = EpisodeLog(join)
         self._violations = RecordTable(VIOLATION_COLUMNS)
-        # Episodes closed at the current step, stored at the next one (or by finish): a collision reported at this
-        # step may still join them (collide).
-        self._closed_now: list[dict] = []
-        self._open = _Episodes()
+        self._episode_violations: dict[int, list[dict]] = {}  # pair key → rows of its open episode, written at its end
+        self._continued: dict[int, dict] = {}  # pair key → record of the episode its open one continues
+        self._open = OpenEpisodes()
         self._prev_keys = np.zeros(0, dtype=np.int64)
         self._prev_rules = np.zeros(0, dtype=np.int8)
         self._prev_priority = np.zeros(0, dtype=np.int8)
+        self._prev_by_signal = np.zeros(0, dtype=bool)
         self._prev_areas: AreaRules | None = None
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
-        self._ended_now: dict[int, dict] = {}  # pair key → record of an episode that ended at the current step
         self._last_time: float | None = None
         self._next_serial = 0
         self.serial_keys: dict[int, str] = {}  # serial → episode key of every closed episode
@@ -194,7 +142,7 @@ class ResponsibilityTracker:
         """Advance to ``step.time``."""
         if self._last_time is not None and step.time <= self._last_time + TIME_EPS:
             raise ValueError(f"time must increase: {step.time} s after {self._last_time} s")
-        self._store_closed()
+        self._log.expire(step.time)
         self.judged = None
         sit = step.situations
         order = np.argsort(step.keys, kind="stable")
@@ -207,7 +155,7 @@ class ResponsibilityTracker:
         # reported at this step still joins them (collide): SUMO's default collision action removes the collider
         # or moves it far away in the very step of the collision.
         gone = ~np.isin(self._open.uids, step.uids).all(axis=1)
-        self._ended_now = dict(zip(self._open.keys[gone].tolist(), self._close(gone, step.time, end_of_data=True)))
+        self._close(gone, step.time, end_of_data=True)
         found, pos = _lookup(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
         # 2. Compliance of both cars in every open episode (the first judged step is the one after t_b). An episode
@@ -215,12 +163,12 @@ class ResponsibilityTracker:
         # when the pair was still dangerous; also one whose pair is no longer a candidate (far apart now).
         if len(self._open):
             self._check_compliance(step, sit_rows[pos] if len(keys) else pos, found, still_dangerous)
-        self._ended_now.update(zip(self._open.keys[~still_dangerous].tolist(),
-                                   self._close(~still_dangerous, step.time)))
+        self._close(~still_dangerous, step.time)
         # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
         found, pos = _lookup(keys, self._collided)
         self._collided = self._collided[found & dangerous[pos]] if len(keys) else self._collided[:0]
-        # 3. Newly dangerous pairs open an episode at the danger threshold t_b = now.
+        # 3. Newly dangerous pairs open an episode at the danger threshold t_b = now (or continue the one that ended
+        # within ρ before).
         new = dangerous & ~_lookup(self._open.keys, keys)[0] & ~_lookup(self._collided, keys)[0]
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
@@ -228,6 +176,7 @@ class ResponsibilityTracker:
         self._prev_areas = step.areas
         self._prev_rules = sit.safe_rules[order]
         self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
+        self._prev_by_signal = sit.kind[order] == KIND_SIGNAL
         self._last_time = step.time
 
     def open_episodes(self, vclass: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -252,18 +201,21 @@ class ResponsibilityTracker:
 
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
-        their records (none: the pair was in no episode). An episode that ended at this step (step 1 of
-        :meth:`step`) is the collision's too: the pair was in danger up to the contact. Either way no new episode
-        of the pair opens until it is safe once: cars left in contact are not judged for what follows it."""
+        their records (none: the pair was in no episode). An episode that ended within its join window (with raw
+        episodes: at this step, step 1 of :meth:`step`) is the collision's too: the pair was in danger up to just
+        before the contact. Either way no new episode of the pair opens until it is safe once: cars left in contact
+        are not judged for what follows it."""
         records = []
         for pair_key in pair_keys:
             hit = self._open.keys == pair_key
             if hit.any():
                 records.append(self._close(hit, time, collision=(collider, victim))[0])
-            elif pair_key in self._ended_now:
-                record = self._ended_now.pop(pair_key)
+                continue
+            record = self._log.collide(pair_key, time)
+            if record is not None:
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
+                self._log.close(pair_key, record, time, 0.0, joinable=False)
                 records.append(record)
         self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
         return records
@@ -272,19 +224,15 @@ class ResponsibilityTracker:
         """Close every open episode at the last observed time (end of data)."""
         if len(self._open):
             self._close(np.ones(len(self._open), dtype=bool), self._last_time or 0.0, end_of_data=True)
-        self._store_closed()
+        self._log.expire(np.inf)
 
     def episodes(self) -> pd.DataFrame:
-        """The closed episodes so far, in the order they closed (EPISODE_COLUMNS)."""
-        return self._episodes.frame(self._closed_now)
+        """The closed episodes so far (EPISODE_COLUMNS)."""
+        return self._log.frame()
 
     def violations(self) -> pd.DataFrame:
-        """The finished violations so far, in the order they finished (VIOLATION_COLUMNS)."""
+        """The finished violations of the closed episodes so far, in the order they finished (VIOLATION_COLUMNS)."""
         return self._violations.frame()
-
-    def _store_closed(self) -> None:
-        self._episodes.extend(self._closed_now)
-        self._closed_now = []
 
     # -----------------------------------------------------------------------------------------------------
     def _episode_key(self, i: int) -> str:
@@ -300,6 +248,7 @@ class ResponsibilityTracker:
         seen, pos = _lookup(self._prev_keys, keys)
         prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         prev_priority = self._prev_priority[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
+        prev_by_signal = self._prev_by_signal[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=bool)
         if self._prev_areas is not None and len(self._prev_areas.keys) and step.area_number is not None:
             # A crossing pair: what held in the area it is dangerous in now.
             area_keys = np.empty(len(keys), dtype=AREA_KEY)
@@ -309,32 +258,42 @@ class ResponsibilityTracker:
             seen = seen | found
             prev_rules = np.where(found, self._prev_areas.rules[at], prev_rules)
             prev_priority = np.where(found, self._prev_areas.priority[at], prev_priority)
+            prev_by_signal = np.where(found, self._prev_areas.by_signal[at], prev_by_signal)
         appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
-        duties = duties_at_threshold(sit, rows, prev_rules, prev_priority, seen, appeared)
+        duties = duties_at_threshold(sit, rows, prev_rules, prev_priority, seen, appeared, prev_by_signal)
         # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
         u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
                               np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
         n = len(keys)
-        for k in keys:
-            self._episode_count[int(k)] = self._episode_count.get(int(k), 0) + 1
-        fresh = _Episodes(
-            keys=keys.astype(np.int64), serial=np.arange(self._next_serial, self._next_serial + n, dtype=np.int64),
-            a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
+        serials = np.arange(self._next_serial, self._next_serial + n, dtype=np.int64)
+        for r, k in enumerate(keys.tolist()):
+            record = self._log.resume(k, step.time)
+            if record is not None:  # the pair's episode that ended within ρ goes on (its serial too)
+                self._continued[k] = record
+                serials[r] = record["serial"]
+            else:
+                self._episode_count[k] = self._episode_count.get(k, 0) + 1
+        fresh = OpenEpisodes(
+            keys=keys.astype(np.int64), serial=serials, a_id=step.ids[a].astype(object),
+            b_id=step.ids[b].astype(object),
             uids=np.column_stack([step.uids[a], step.uids[b]]),
             a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
             kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
+            window=np.maximum(step.params.response_time[a], step.params.response_time[b]),
             must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
             owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
             area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
             a_left=sit.a_is_left[rows], u0=u0, lat_settled=np.zeros((n, 2), dtype=bool),
             min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
             min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
-            responsible=np.zeros((n, 2), dtype=bool), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
+            responsible=np.zeros((n, 2), dtype=bool), **_area_progress(
+                sit, rows, np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]),
+                np.column_stack([step.accel[a], step.accel[b]])), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
             v_start=np.zeros((n, 2, N_CONSTRAINTS)), v_last=np.zeros((n, 2, N_CONSTRAINTS)),
             v_worst=np.zeros((n, 2, N_CONSTRAINTS)), v_bound=np.zeros((n, 2, N_CONSTRAINTS)),
             v_excess=np.full((n, 2, N_CONSTRAINTS), -np.inf))
         self._next_serial += n
-        merged = _Episodes.concat([self._open, fresh]) if len(self._open) else fresh
+        merged = OpenEpisodes.concat([self._open, fresh]) if len(self._open) else fresh
         self._open = merged.take(np.argsort(merged.keys, kind="stable"))
 
     def _check_compliance(self, step: StepInput, rows: np.ndarray, candidate: np.ndarray,
@@ -363,6 +322,11 @@ class ResponsibilityTracker:
             cars, v_lon, v_lat = own, step.speed[own], np.zeros(own.shape)
         p = step.params
         accel = step.accel[cars]
+        if len(sit):
+            progress = _area_progress(sit, rows, v_lon, accel)
+            e.entered |= pair & progress["entered"]
+            e.stood_short |= pair & progress["stood_short"]
+            e.stopping = np.where(pair, progress["stopping"], e.stopping)
         rho = p.response_time[cars]
         tau = (t - e.t_b)[:, None]
         in_response = tau <= rho + TIME_EPS
@@ -400,13 +364,17 @@ class ResponsibilityTracker:
         tolerance[..., 3] = EPS_ACCEL * np.minimum(tau, settles)
         excess = sign * (actual - bound)
         violating = applies & judged[:, None, None] & (excess > tolerance)
-        self._roll_violations(violating, actual, bound, excess, t)
+        # With joining, a violation that resumes within the car's ρ continues its interval (one row, not one per
+        # step where a coarsely measured acceleration dips back within its bound).
+        self._roll_violations(violating, actual, bound, excess, t, rho if self._log.join else np.zeros_like(rho))
         shown = np.where(applies & judged[:, None, None], bound, np.nan)
         self.judged = JudgedStep(e.serial, accel, np.fmin(shown[..., 0], shown[..., 1]), shown[..., 2],
                                  np.where(pair, u, np.nan), shown[..., 3])
 
     def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
-                         t: float) -> None:
+                         t: float, grace: np.ndarray) -> None:
+        """Start, extend and end the violation intervals [episode, car, constraint]; an interval ends once ``grace``
+        [s] per car has passed since its last violating step."""
         e = self._open
         starting = violating & ~e.active
         e.v_start = np.where(starting, t, e.v_start)
@@ -415,18 +383,20 @@ class ResponsibilityTracker:
         e.v_bound = np.where(worse, bound, e.v_bound)
         e.v_excess = np.where(worse, excess, e.v_excess)
         e.v_last = np.where(violating, t, e.v_last)
-        ended = e.active & ~violating
+        ended = e.active & ~violating & (t - e.v_last > grace[..., None] + TIME_EPS)
         if np.any(ended):
             self._emit_violations(ended)
-        e.active = violating
+        e.active = violating | (e.active & ~ended)
         e.responsible |= np.any(violating, axis=2)
 
     def _emit_violations(self, mask: np.ndarray) -> None:
+        """The finished violations ``mask`` [episode, car, constraint] as rows of their episodes (written when the
+        episode ends: a car that stays out of the conflict area has complied after all)."""
         e = self._open
         for i, car, c in zip(*np.nonzero(mask)):
             vid = e.a_id[i] if car == 0 else e.b_id[i]
             vclass = e.a_class[i] if car == 0 else e.b_class[i]
-            self._violations.append({
+            self._episode_violations.setdefault(int(e.keys[i]), []).append({
                 "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_id": vid,
                 "vehicle_class": vclass, "role": e.roles[i, car], "constraint": CONSTRAINTS[c].value,
                 "bound": float(e.v_bound[i, car, c]), "worst_actual": float(e.v_worst[i, car, c]),
@@ -440,15 +410,25 @@ class ResponsibilityTracker:
             return []
         e = self._open
         self._emit_violations(e.active & mask[:, None, None])
+        # A car owing braking at a junction that stops before the conflict area complied: it never entered the area
+        # while the episode lasted, and stood still short of it or, when the episode ended, was braking hard enough
+        # to stop before it.
+        excused = e.must_brake & ~e.entered & (e.stood_short | e.stopping) & \
+            (e.kind >= FIRST_INTERSECTION_CODE)[:, None] & self.stay_out_complies
         records = []
         for i in np.flatnonzero(mask):
+            key = int(e.keys[i])
             t_end = float(e.t_last[i]) if end_of_data else time
-            resp = e.responsible[i]
-            key = self._episode_key(i)
-            self.serial_keys[int(e.serial[i])] = key
-            records.append({
-                "run_id": self.run_id, "episode_key": key, "vehicle_a": e.a_id[i],
-                "vehicle_b": e.b_id[i], "class_a": e.a_class[i], "class_b": e.b_class[i],
+            resp = e.responsible[i] & ~excused[i]
+            cleared = {e.a_id[i], e.b_id[i]} if excused[i].all() else {e.a_id[i]} if excused[i, 0] else \
+                {e.b_id[i]} if excused[i, 1] else set()
+            self._violations.extend(row for row in self._episode_violations.pop(key, ())
+                                    if row["vehicle_id"] not in cleared)
+            episode_key = self._episode_key(i)
+            self.serial_keys[int(e.serial[i])] = episode_key
+            record = {
+                "run_id": self.run_id, "episode_key": episode_key, "serial": int(e.serial[i]),
+                "vehicle_a": e.a_id[i], "vehicle_b": e.b_id[i], "class_a": e.a_class[i], "class_b": e.b_class[i],
                 "episode_index": self._episode_count[int(e.keys[i])],
                 "situation": SITUATION_CODES[e.kind[i]].value, "t_b_s": float(e.t_b[i]), "t_end_s": t_end,
                 "duration_s": t_end - float(e.t_b[i]), "trigger": e.trigger[i],
@@ -457,10 +437,28 @@ class ResponsibilityTracker:
                 "min_lon_margin_m": float(e.min_lon_margin[i]), "min_lat_margin_m": float(e.min_lat_margin[i]),
                 "collision": collision is not None, "collider": collision[0] if collision else "",
                 "victim": collision[1] if collision else "", "ended_by": "collision" if collision else
-                "end-of-data" if end_of_data else "safe"})
-        self._closed_now.extend(records)
+                "end-of-data" if end_of_data else "safe"}
+            if key in self._continued:
+                record = join_records(self._continued.pop(key), record)
+            records.append(record)
+            self._log.close(key, record, time, float(e.window[i]), joinable=collision is None and not end_of_data)
         self._open = e.take(np.flatnonzero(~mask))
         return records
+
+
+def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray
+                   ) -> dict[str, np.ndarray]:
+    """[n, 2] per car of the crossing situations ``rows`` (``speed`` [m/s] and ``accel`` [m/s²] per car): its front
+    bumper is in the conflict area or past its start ('entered'), it stands short of it ('stood_short'), it is
+    short of it and stands or brakes hard enough to stop before it ('stopping'); all False on roads."""
+    if sit.enter_a is None:
+        none = np.zeros((len(rows), 2), dtype=bool)
+        return {"entered": none, "stood_short": none, "stopping": none}
+    enter = np.column_stack([sit.enter_a[rows], sit.enter_b[rows]])  # NaN on roads: every comparison False
+    short = enter > 0.0
+    standing = short & (speed < STOPPED_SPEED)
+    return {"entered": enter < 0.0, "stood_short": standing,
+            "stopping": standing | (short & (accel < 0.0) & (speed * speed < -2.0 * accel * enter))}
 
 
 def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from enum import Enum
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -66,11 +67,12 @@ class VehicleFrame:
     wrong_way: np.ndarray  # driving on the opposite edge of a two-way road (overtaking through the oncoming lane)
     cx: np.ndarray  # centre x [m]
     cy: np.ndarray  # centre y [m]
-    s: np.ndarray  # centre's s along its own lane [m]
+    # Its centre along its own lane as a SUMO lane position (lengths with elevation): SUMO's car covers [pos − length,
+    # pos] of its lane, so its centre is half its length behind the front bumper along the lane (a car moving across
+    # the lane, by the cosine of its direction of motion); the 2-D shape's projection put a car on a 50 % slope 0.24 m
+    # too far back (its body, along the slope, is shorter in plan).
+    pos: np.ndarray
     d: np.ndarray  # centre's offset from its lane's centre line, + = left [m]
-    lane_heading: np.ndarray  # heading of its lane at its centre [rad]
-    rel_heading: np.ndarray  # direction of motion relative to its lane: atan2(lateral, longitudinal speed) [rad]
-    speed: np.ndarray  # total speed [m/s]
     v_lon: np.ndarray  # speed along the lane [m/s]
     v_lat: np.ndarray  # speed across the lane, + = left [m/s]
     half_lon: np.ndarray  # half extent of the bounding box along the lane [m]
@@ -114,6 +116,9 @@ class PairSituations:
     # Roads: whether a / b drives in the oncoming lane of a two-way road (VehicleFrame.wrong_way).
     wrong_way_a: np.ndarray | None = None
     wrong_way_b: np.ndarray | None = None
+    # Intersections: each car's d_enter [m] (front bumper to the conflict area, negative inside); NaN on roads.
+    enter_a: np.ndarray | None = None
+    enter_b: np.ndarray | None = None
 
     @property
     def safe_rules(self) -> np.ndarray:
@@ -150,7 +155,8 @@ class PairSituations:
         return PairSituations(**fields, rules=rules, priority=column("priority", 0, np.int8),
                               in_front=column("in_front", 0, np.int8), area=column("area", "", object),
                               wrong_way_a=column("wrong_way_a", False, bool),
-                              wrong_way_b=column("wrong_way_b", False, bool))
+                              wrong_way_b=column("wrong_way_b", False, bool),
+                              enter_a=column("enter_a", np.nan, float), enter_b=column("enter_b", np.nan, float))
 
 
 @jitable
@@ -172,8 +178,8 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
     ``reach`` with ``candidate_params`` where given (the parameters without ``hold_standing``)."""
     lane = network.lane_indices(snapshot.lane_id)
     cx, cy, _ = body_poses(snapshot, network, lane)
-    # SUMO's lane position (front bumper, along the lane's nominal length) hints where the centre projects.
-    hint = snapshot.lane_pos * network.shapes.cumulative[lane, -1] / network.lane_length[lane] - 0.5 * snapshot.length
+    # SUMO's lane position (front bumper, along the lane's own length) hints where the centre projects.
+    hint = network.shapes.shape_s(lane, snapshot.lane_pos) - 0.5 * snapshot.length
     s, d, lane_heading = network.frenet(lane, cx, cy, hint)
     lane_pos = snapshot.lane_pos
     # SUMO puts a car that overtakes through the oncoming lane on the opposite edge's lane (heading against it);
@@ -184,23 +190,28 @@ def vehicle_frame(snapshot: WorldSnapshot, network: RoadNetwork, params: RssPara
         k = np.flatnonzero(wrong_way)
         lane = lane.copy()
         lane[k] = _innermost_lane(network)[network.edge_opposite[network.lane_edge[lane[k]]]]
-        s, d, lane_heading = (x.copy() for x in (s, d, lane_heading))
+        s, d = s.copy(), d.copy()
+        lane_heading = lane_heading.copy()
         s[k], d[k], lane_heading[k] = network.frenet(lane[k], cx[k], cy[k])
         lane_pos = lane_pos.copy()
-        lane_pos[k] = (s[k] + 0.5 * snapshot.length[k]) * network.lane_length[lane[k]] / _shape_length(network, lane[k])
+        lane_pos[k] = network.shapes.lane_pos(lane[k], s[k]) + 0.5 * snapshot.length[k]
     # SUMO's speed is along the lane and its lateral speed across it: the lane frame's velocity as it is. (The
     # heading minus the lane direction would read phantom lateral speed on curves stored as polylines.)
     v_lon, v_lat = snapshot.speed, snapshot.lat_speed
     speed = np.hypot(v_lon, v_lat)
     # The footprint turns with the direction of motion; a car standing still lies along its lane (the direction of
     # noise-level lateral speeds, such as a placed ego's 1e-5 m/s, turned a stopped car across the road).
-    theta = np.where(speed < FOOTPRINT_MIN_SPEED, 0.0, np.arctan2(v_lat, np.maximum(v_lon, 0.0)))
+    # It turns no further than SUMO turned the body (its angle against the lane): a car changing lanes at a
+    # standstill moves only sideways, and its footprint across the road doubled its width (DRT: a lateral gap of
+    # −3.35 m for a car beside it whose body SUMO turned 18°).
+    motion = np.where(speed < FOOTPRINT_MIN_SPEED, 0.0, np.arctan2(v_lat, np.maximum(v_lon, 0.0)))
+    body = np.abs(wrap_angle(snapshot.heading - lane_heading))
+    theta = np.sign(motion) * np.minimum(np.abs(motion), body)
     half_lon, half_lat = _half_extents(snapshot.length, snapshot.width, theta)
     forward = np.maximum(v_lon, 0.0)
     return VehicleFrame(
-        lane=lane, edge=network.lane_edge[lane], lane_pos=lane_pos, wrong_way=wrong_way, cx=cx, cy=cy, s=s, d=d,
-        lane_heading=lane_heading,
-        rel_heading=theta, speed=speed,
+        lane=lane, edge=network.lane_edge[lane], lane_pos=lane_pos, wrong_way=wrong_way, cx=cx, cy=cy,
+        pos=lane_pos - 0.5 * snapshot.length * np.cos(theta), d=d,
         v_lon=v_lon, v_lat=v_lat, half_lon=half_lon, half_lat=half_lat,
         reach=lon_reach(speed, params if candidate_params is None else candidate_params, params.lon_brake_min_correct),
         reach_min=lon_reach(forward, params, params.lon_brake_min),
@@ -303,16 +314,22 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
     i_ahead = ~same_edge & np.isfinite(dist_ji) & (dist_ji < dist_ij)
     # Chained edges count along the rear car's remaining route (or any route where it is unknown), and into a
     # junction behind a car on an internal lane that the rear car's own lane leads to (it left that lane ahead
-    # of it: both leave the lane the same way until the front car has left the junction).
+    # of it: both leave the lane the same way until the front car has left the junction), or whose rear is still
+    # on the edge it came from, on the rear car's route (a car turning off from the next lane, its body still
+    # across the end of that edge: Bologna's 0.93 m edge 77bc between two junctions, where the pair was dropped
+    # one second before the two collided).
     for ahead, rear, front in ((j_ahead, i, j), (i_ahead, j, i)):
         k = np.flatnonzero(ahead)
         chained = _on_route(frame, rear[k], frame.edge[front[k]], network)
         into = np.flatnonzero(~chained & network.edge_internal[frame.edge[front[k]]])
-        chained[into] = _leads_to(network, frame.lane[rear[k[into]]], frame.lane[front[k[into]]])
+        f = front[k[into]]
+        chained[into] = _leads_to(network, frame.lane[rear[k[into]]], frame.lane[f]) | (
+            (frame.pos[f] < frame.half_lon[f]) & _on_route(frame, rear[k[into]], _entry_edges(network)[frame.lane[f]],
+                                                           network))
         ahead[k] = chained
-    # On one edge, compare positions along the edge (SUMO's lane positions: each lane's shape length scaled to
-    # the edge's length; the lanes of a curved edge differ in shape length).
-    j_front_same_edge = same_edge & (_along_edge(frame, j, network) >= _along_edge(frame, i, network))
+    # On one edge, compare SUMO's lane positions (the lanes of a curved edge differ in shape length; cars side by
+    # side on a curve have the same position).
+    j_front_same_edge = same_edge & (frame.pos[j] >= frame.pos[i])
     # On the two edges of a two-way road the cars drive towards each other, also where a turnaround at its end
     # chains the edges (a route that turns there, or any route where it is unknown).
     opposite = (network.edge_opposite[ei] == ej) & (ej >= 0)
@@ -323,15 +340,27 @@ def classify(frame: VehicleFrame, i: np.ndarray, j: np.ndarray,
 
 
 def _shape_length(network: RoadNetwork, lane: np.ndarray) -> np.ndarray:
-    """[m] the length of lanes' shapes (SUMO's lane length is the edge's, the same for every lane of an edge)."""
+    """[m] the length of lanes' 2-D shapes."""
     return network.shapes.cumulative[lane, -1]
 
 
-def _along_edge(frame: VehicleFrame, rows: np.ndarray, network: RoadNetwork) -> np.ndarray:
-    """[m] the centres of vehicles ``rows`` along their edge, as SUMO measures lane positions (a lane's shape
-    length scaled to the edge's length: cars side by side on a curve have the same position)."""
-    lane = frame.lane[rows]
-    return frame.s[rows] * network.edge_length[frame.edge[rows]] / _shape_length(network, lane)
+@lru_cache(maxsize=8)
+def _entry_edges(network: RoadNetwork) -> np.ndarray:
+    """[lanes] for each internal (junction) lane, the normal edge its connection comes from; for a normal lane, its
+    own edge."""
+    entry = network.lane_edge.copy()
+    internal = network.edge_internal[network.lane_edge]
+    before = np.full(len(entry), -1)
+    for k, successors in enumerate(network.lane_successors):
+        for j in successors:
+            if before[j] < 0:
+                before[j] = k
+    for k in np.flatnonzero(internal):
+        lane, hops = k, 0
+        while internal[lane] and before[lane] >= 0 and hops < len(entry):
+            lane, hops = before[lane], hops + 1
+        entry[k] = network.lane_edge[lane]
+    return entry
 
 
 def _leads_to(network: RoadNetwork, lanes: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -364,18 +393,18 @@ def _distinct_lane_pairs(network: RoadNetwork, lanes: np.ndarray, others: np.nda
 
 def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray,
                                  network: RoadNetwork) -> tuple[np.ndarray, np.ndarray]:
-    """(s, d) [m] in the reference lane's frame of cars on an edge upstream of the reference car's.
+    """(lane position, d) [m] in the reference lane's frame of cars on an edge upstream of the reference car's.
 
-    Lane-based, as ad_rss's road area: s is the path length along the lanes (negative before the reference
-    lane's start) and d the car's offset in its own lane plus where that lane ends up across the reference
-    lane. Projecting the car itself onto the reference lane's straight extension would turn every kink or
+    Lane-based, as ad_rss's road area: the position is the path length along the lanes (SUMO's lengths; negative
+    before the reference lane's start) and d the car's offset in its own lane plus where that lane ends up across
+    the reference lane. Projecting the car itself onto the reference lane's straight extension would turn every kink or
     curve between the edges into a phantom lateral offset and lateral speed (0.9 m and 0.24 m/s 110 m behind a
     0.5° kink at highway speed).
     """
     lane_o, lane_r = frame.lane[other], frame.lane[ref]
     behind = network.edge_distances(frame.edge[other], frame.edge[ref])  # start of the car's edge to the ref's
-    # Along the lanes (SUMO's lengths), in the reference lane's shape metres.
-    s = (_along_edge(frame, other, network) - behind) * _shape_length(network, lane_r) / network.lane_length[lane_r]
+    # Along the lanes, in SUMO's lengths (no scaling by a lane's shape: on a slope it is shorter than the lane).
+    pos = frame.pos[other] - behind
     # Across: the lane the car's lane leads on to (through a turn, too); where it leads to no lane of the
     # reference edge, where the end of its lane lies across the reference lane's extension.
     d_join = _joined_offset(network, lane_o, lane_r)
@@ -383,9 +412,9 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
     if unjoined.size:
         lo = lane_o[unjoined]
         end = network.shapes.points[lo, network.shapes.count[lo] - 1]
-        d_join[unjoined] = network.frenet(lane_r[unjoined], end[:, 0], end[:, 1],
-                                          network.lane_length[lo] - behind[unjoined])[1]
-    return s, frame.d[other] + d_join
+        hint = network.shapes.shape_s(lane_r[unjoined], network.lane_length[lo] - behind[unjoined])
+        d_join[unjoined] = network.frenet(lane_r[unjoined], end[:, 0], end[:, 1], hint)[1]
+    return pos, frame.d[other] + d_join
 
 
 def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork) -> PairSituations:
@@ -397,42 +426,41 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     relevant = kind >= 0
     kind, ref, other = kind[relevant], ref[relevant], other[relevant]
 
-    # The other car in the reference lane's frame. Along one road (same edge, or an edge upstream in the same
-    # direction) the frame is lane-based: its Frenet coordinates convert (on one edge exactly: s scaled by the
-    # lane lengths, d shifted by the lane offsets) and its lane-relative speeds and per-car terms hold as they
-    # are. On the opposite edge of a two-way road its centre is projected and its terms are recomputed.
+    # The other car in the reference lane's frame, lane-based wherever it is (as ad_rss's road area): its own
+    # Frenet coordinates convert and its lane-relative speeds and per-car terms hold as they are. On one edge:
+    # SUMO's lane positions compare directly, d shifts by the lane offsets; on an edge upstream in the same
+    # direction: by the path length along the lanes and the lane its lane leads on to; on the other direction of
+    # a two-way road: by the reversed path length and the measured distance between the two lanes, its speeds
+    # reversed. (Projecting its velocity onto the reference lane's polyline gave it the lateral speed of every
+    # kink between the two lanes' vertices: 27-76° at Monaco's bends read as up to 14.8 m/s sideways.)
     lane_r, lane_o = frame.lane[ref], frame.lane[other]
-    s_o = frame.s[other] * _shape_length(network, lane_r) / _shape_length(network, lane_o)
+    pos_o = frame.pos[other]
     d_o = frame.d[other] + network.lane_offset[lane_o] - network.lane_offset[lane_r]
     v_lon_o, v_lat_o = frame.v_lon[other], frame.v_lat[other]
     half_lon_o, half_lat_o = frame.half_lon[other], frame.half_lat[other]
     cross = frame.edge[ref] != frame.edge[other]
     chained = np.flatnonzero(cross & (kind == 0))
     if chained.size:
-        s_o[chained], d_o[chained] = _upstream_in_reference_frame(frame, ref[chained], other[chained], network)
-    projected = np.flatnonzero(cross & (kind != 0))
-    if projected.size:
-        oc = other[projected]
-        s_x, d_x, foot_heading = network.frenet(lane_r[projected], frame.cx[oc], frame.cy[oc],
-                                                network.lane_length[lane_r[projected]] - frame.s[oc])
-        theta = wrap_angle(frame.rel_heading[oc] + frame.lane_heading[oc] - foot_heading)
-        s_o[projected], d_o[projected] = s_x, d_x
-        v_lon_o[projected], v_lat_o[projected] = frame.speed[oc] * np.cos(theta), frame.speed[oc] * np.sin(theta)
-        half_lon_o[projected], half_lat_o[projected] = _half_extents(snapshot.length[oc], snapshot.width[oc],
-                                                                     theta)
+        pos_o[chained], d_o[chained] = _upstream_in_reference_frame(frame, ref[chained], other[chained], network)
+    oncoming = np.flatnonzero(kind == 1)
+    if oncoming.size:
+        oc, lo = other[oncoming], lane_o[oncoming]
+        pos_o[oncoming], d_o[oncoming] = network.two_way.in_lane_frame(
+            lane_r[oncoming], lo, network.lane_index[lo], frame.pos[oc], network.lane_length[lo], frame.d[oc])
+        v_lon_o[oncoming], v_lat_o[oncoming] = -frame.v_lon[oc], -frame.v_lat[oc]
 
     same = kind == 0
     # Opposite pairs that have passed each other (bodies wholly past) are no situation any more.
-    keep = same | (s_o + half_lon_o + frame.half_lon[ref] > frame.s[ref])
+    keep = same | (pos_o + half_lon_o + frame.half_lon[ref] > frame.pos[ref])
     if not np.all(keep):
-        kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
-            x[keep] for x in (kind, ref, other, same, s_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
-    opposite = np.flatnonzero(~same)  # the projected pairs (opposite edges are never the same edge)
-    lon_gap = np.abs(s_o - frame.s[ref]) - half_lon_o - frame.half_lon[ref]
+        kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
+            x[keep] for x in (kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
+    opposite = np.flatnonzero(~same)
+    lon_gap = np.abs(pos_o - frame.pos[ref]) - half_lon_o - frame.half_lon[ref]
     lat_gap = np.abs(d_o - frame.d[ref]) - half_lat_o - frame.half_lat[ref]
     other_left = d_o > frame.d[ref]
 
-    # Per-car terms, gathered; the other car's recomputed where it was projected (in the reference frame).
+    # Per-car terms, gathered; the other car's recomputed in the reference frame on a two-way road.
     p = frame.params
     reach_o, stop_r = frame.reach_min[other], frame.stop_max[ref]
     lat_left_o, lat_right_o = frame.lat_reach_as_left[other], frame.lat_reach_as_right[other]
