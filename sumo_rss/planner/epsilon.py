@@ -27,7 +27,7 @@ from ..road.routes import RouteTable
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory
 from .behavior.cfb import branch_scenarios, uncertain_agents
-from .behavior.controllers import IdmParams
+from .behavior.controllers import IdmParams, VehicleLimits
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import Navigation, evaluate
@@ -38,7 +38,8 @@ from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import Crossing, stop_line
-from .lanes import CURRENT, LEFT, RIGHT, lane_chains, lanes_consistent_with
+from .frames import PlanningFrames
+from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
 from .road_frame import RoadFrame
@@ -53,6 +54,14 @@ SPACING_SCALE_ACCELERATE = 0.75  # s0 and T factor of the 'accelerate' action
 MPDM_IDM = IdmParams(s0=2.5, headway=1.5, accel=2.0, comfort_brake=3.0)  # aggressiveness level 3 (epsilon.md §2.4)
 MPDM_PURSUIT_GAIN = 2.0  # [s] pure-pursuit look-ahead per m/s of every aggressiveness level
 MPDM_SPEED_STEP = 5.0  # [m/s] MPDM's speed command is within this of the ego's speed
+# A lane change the route makes mandatory is due this far before the lane ends, per change still to make: the
+# larger of [m] and [s] at the ego's speed (a change takes ~6-7 s: 4 consistent cycles, >= 2 s to its operation
+# time, ~3 s to cross).
+MANDATORY_REACH_M, MANDATORY_REACH_S = 200.0, 10.0
+# [m/s²] the ego's acceleration: epsilon.md §3.1's ego has 1.0 (the release's highway demo), half of what its agents,
+# its evasive mode and the MPDM baseline use; with it the ego took ~12 s from 10 to 13 m/s (docs/planner.md)
+EGO_ACCEL = 2.0
+EGO_SIM = SimSettings(ego_idm=IdmParams(accel=EGO_ACCEL), ego_limits=VehicleLimits(max_accel=EGO_ACCEL))
 
 
 @dataclass(frozen=True)
@@ -69,7 +78,7 @@ class PlannerConfig:
     replan_every: int = 1
     output_step: float = 0.1  # [s] sampling of the returned trajectory (the co-simulation step)
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch (epsilon mode)
-    sim: SimSettings = SimSettings()
+    sim: SimSettings = EGO_SIM
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
     motion: MotionSettings = MotionSettings()
@@ -122,10 +131,8 @@ class EpsilonPlanner:
         self.config = config
         self.manager = Manager(config.manager, config.layer_duration, config.desired_speed)
         self.stats = PlannerStats()
-        self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
+        self.frames = PlanningFrames(network)
         self._curvature = 0.0
-        self._last_lane: tuple[WorldSnapshot, int, tuple[int, RoadFrame]] | None = None
-        self._last_centre: tuple[WorldSnapshot, int, RoadFrame, tuple[np.ndarray, ...]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         self.belief = _learned_belief(network, config.output_step * config.replan_every) \
@@ -148,7 +155,7 @@ class EpsilonPlanner:
         key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
-        v_ref = self._reference_speed(frame, float(vehicles.s[0]), v_ego)
+        v_ref = frame.chains.reference_speed(CURRENT, float(vehicles.s[0]), cfg.desired_speed)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane)
@@ -167,7 +174,7 @@ class EpsilonPlanner:
         params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
         ego_params = _row(params, 0)
         s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
-        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.reference_speed(
+        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.speed_cap(
             CURRENT, s_front + start, length, cfg.desired_speed))  # as the rollouts drive it through the junction
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
@@ -228,48 +235,8 @@ class EpsilonPlanner:
         return self.planning_lane(snapshot, ego)[1]
 
     def planning_lane(self, snapshot: WorldSnapshot, ego: int) -> tuple[int, RoadFrame]:
-        """The ego's lane for planning and its frame: the lane nearest to the ego's centre (epsilon.md §2.5 step
-        4), i.e. SUMO's lane or its neighbour on the edge. SUMO puts a vehicle on the lane under its front bumper,
-        so half-way through a lane change its centre may still be in the lane it leaves. The last answer is kept:
-        the guard asks again for the snapshot just planned on."""
-        last = self._last_lane
-        if last is not None and last[0] is snapshot and last[1] == ego:
-            return last[2]
-        lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
-        route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
-        edges = tuple(self.network.edge_indices(route).tolist())
-        frame = self._frame(lane, edges)
-        s, d, _ = self._ego_centre(snapshot, ego, frame)
-        side = {LEFT: self.network.lane_left, RIGHT: self.network.lane_right}.get(int(frame.nearest_chain(s, d)[0]))
-        if side is not None and side[lane] >= 0:
-            lane = int(side[lane])
-            frame = self._frame(lane, edges)
-        self._last_lane = (snapshot, ego, (lane, frame))
-        return lane, frame
-
-    def _ego_centre(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The ego's centre (s, d, heading_rel) [1] in ``frame`` from its front bumper (the last answer is kept:
-        the lane choice and the vehicle setup both ask, mostly in the same frame). Read-only arrays."""
-        last = self._last_centre
-        if last is not None and last[0] is snapshot and last[1] == ego and last[2] is frame:
-            return last[3]
-        centre = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
-                                        0.5 * float(snapshot.length[ego]))
-        for array in centre:
-            array.flags.writeable = False
-        self._last_centre = (snapshot, ego, frame, centre)
-        return centre
-
-    def _frame(self, lane: int, edges: tuple[int, ...]) -> RoadFrame:
-        """The frame around ``lane`` along the route ``edges`` (cached)."""
-        frame = self._frames.get((lane, edges))
-        if frame is None:
-            if len(self._frames) > 64:
-                self._frames.clear()
-            frame = RoadFrame.build(lane_chains(self.network, lane, np.array(edges, dtype=int)))
-            self._frames[(lane, edges)] = frame
-        return frame
+        """The ego's lane for planning and its frame (:meth:`PlanningFrames.planning_lane`)."""
+        return self.frames.planning_lane(snapshot, ego)
 
     @staticmethod
     def _rear_reach(snapshot: WorldSnapshot, ego: int, params: RssParamArrays) -> np.ndarray:
@@ -282,7 +249,7 @@ class EpsilonPlanner:
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, key: KeyVehicles,
                   all_params: RssParamArrays) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
-        s_e, d_e, h_e = self._ego_centre(snapshot, ego, frame)
+        s_e, d_e, h_e = self.frames.ego_centre(snapshot, ego, frame)
         chain_e = frame.nearest_chain(s_e, d_e)
         n = rows.size
         ego_column, limits = np.arange(n) == 0, self.config.sim
@@ -329,10 +296,6 @@ class EpsilonPlanner:
                                                                                                    initial=np.inf)
         return np.concatenate([[np.inf], due]) if np.isfinite(due).any() else None
 
-    def _reference_speed(self, frame: RoadFrame, s_ego: float, v: float) -> float:
-        """epsilon.md §2.7: the reference speed over :func:`_speed_reach` ahead of the ego's centre at ``s_ego``."""
-        return frame.chains.reference_speed(CURRENT, s_ego, _speed_reach(v), self.config.desired_speed)
-
     def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
         """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane
         on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one);
@@ -351,13 +314,21 @@ class EpsilonPlanner:
                                       for lat in p.lats)]
 
     def _mandatory(self, frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
-        """The direction the ego must change to when its lane ends within reach (the route goes on)."""
+        """The direction the ego must change to when its lane ends, or leaves its route, within reach: the route's
+        side (the fewest lane changes to its end, :func:`.route_lanes.lane_changes_needed`), else the side that
+        exists (left first). The reach grows with the changes still to make: MANDATORY_REACH per change."""
         end = float(frame.end_s[CURRENT])
-        if np.isfinite(end) and end - s_ego < max(150.0, 8.0 * v):
-            if frame.exists[LEFT]:
-                return Lat.LEFT
-            if frame.exists[RIGHT]:
-                return Lat.RIGHT
+        here, total = frame.chains.changes
+        if not np.isfinite(end) or end - s_ego >= max(total, 1) * max(MANDATORY_REACH_M, MANDATORY_REACH_S * v):
+            return None
+        if here:
+            return Lat.LEFT if here > 0 else Lat.RIGHT
+        if total:  # the changes are to be made on an edge ahead (e.g. into a deceleration lane that starts there)
+            return None
+        if frame.exists[LEFT]:
+            return Lat.LEFT
+        if frame.exists[RIGHT]:
+            return Lat.RIGHT
         return None
 
     def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
