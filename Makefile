@@ -30,8 +30,8 @@ run: install
 test: install
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
-acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios on 2 processes, ~12 minutes)
-	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_closed_loop.py -rxX
+acceptance: install  # issue 48: the EPSILON ego on seeds 0-19 of every scenario family, against sumo and sumo_restricted (2 processes)
+	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_acceptance.py -rxX
 
 bench: install
 	$(BIN)/python bench/run_all.py

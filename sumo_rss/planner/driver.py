@@ -26,7 +26,7 @@ def planner_config(spec: ScenarioSpec) -> PlannerConfig:
         return replace(PlannerConfig.mpdm(ego.desired_speed), output_step=spec.step_s, replan_every=o.replan_every)
     return PlannerConfig(desired_speed=ego.desired_speed, layers=o.layers, layer_duration=o.layer_duration_s,
                          sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every,
-                         output_step=spec.step_s, intention_net=o.intention_net,
+                         output_step=spec.step_s, intention_net=o.intention_net, lane_changes=o.lane_changes,
                          motion=MotionSettings(enabled=o.motion_layer), costs=replace(CostWeights(), **o.costs))
 
 

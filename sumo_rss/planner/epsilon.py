@@ -58,6 +58,9 @@ MPDM_SPEED_STEP = 5.0  # [m/s] MPDM's speed command is within this of the ego's 
 # larger of [m] and [s] at the ego's speed (a change takes ~6-7 s: 4 consistent cycles, >= 2 s to its operation
 # time, ~3 s to cross).
 MANDATORY_REACH_M, MANDATORY_REACH_S = 200.0, 10.0
+# [m] kept beyond the gap a car that cut in left, while its episode's lateral duty holds the ego behind it, where
+# it is slower than the ego's reference speed by DROP_BACK_SLOWER [m/s] or more
+DROP_BACK_M, DROP_BACK_SLOWER = 10.0, 3.0
 # [m/s²] the ego's acceleration: epsilon.md §3.1's ego has 1.0 (the release's highway demo), half of what its agents,
 # its evasive mode and the MPDM baseline use; with it the ego took ~12 s from 10 to 13 m/s (docs/planner.md)
 EGO_ACCEL = 2.0
@@ -78,6 +81,7 @@ class PlannerConfig:
     replan_every: int = 1
     output_step: float = 0.1  # [s] sampling of the returned trajectory (the co-simulation step)
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch (epsilon mode)
+    lane_changes: bool = True  # False: lane-keeping policies only (no lateral actions)
     sim: SimSettings = EGO_SIM
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
@@ -158,7 +162,7 @@ class EpsilonPlanner:
         v_ref = frame.chains.reference_speed(CURRENT, float(vehicles.s[0]), cfg.desired_speed)
         t_scene = time.perf_counter()
 
-        policies = self._policies(now, frame, lane)
+        policies = self._policies(now, frame, lane, _held_sides(owed))
         mandatory = self._mandatory(frame, float(vehicles.s[0]), v_ego)
         probs = self._intentions(frame, key, snapshot)
         horizon = float(sum(policies[0].durations))
@@ -179,7 +183,7 @@ class EpsilonPlanner:
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
-        cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
+        cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
@@ -267,20 +271,28 @@ class EpsilonPlanner:
         return vehicles, params
 
     @staticmethod
-    def _cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles,
-                     owed: OwedResponses | None) -> np.ndarray | None:
+    def _cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles, owed: OwedResponses | None,
+                     frame: RoadFrame, v_ref: float) -> np.ndarray | None:
         """[m] per vehicle column: the bumper gap now to a car ahead that the ego owes no longitudinal braking in
         an open episode (inf elsewhere; None: no such car). Such a car cut in: RSS puts its gap on that car (rss.md
         §5), so the ego keeps the gap it was left, not the RSS distance, and lets it grow back as the car pulls
-        away, rather than braking to restore the distance at once."""
+        away, rather than braking to restore the distance at once. But where that car is slower than the ego's
+        reference speed ``v_ref`` [m/s] by DROP_BACK_SLOWER or more and the episode's lateral duty holds the ego
+        in its lane on the side a lane is (the episode lasts until the gap is RSS-safe again), the ego keeps
+        DROP_BACK_M more than the gap: it drops back until the episode ends and it may pass (behind a car at its own
+        speed the gap would never grow back)."""
         cut_in = owed.without_lon_duty() if owed is not None else frozenset()
         if not cut_in:
             return None
         gap = vehicles.s[1:] - vehicles.s[0] - 0.5 * (vehicles.length[0] + vehicles.length[1:])
-        ahead = np.isin(snapshot.ids[key.rows], list(cut_in)) & (gap >= 0.0)
+        ids = snapshot.ids[key.rows]
+        ahead = np.isin(ids, list(cut_in)) & (gap >= 0.0)
         if not np.any(ahead):
             return None
-        return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
+        side_exists = np.where(owed.other_is_left, frame.exists[LEFT], frame.exists[RIGHT])
+        holding = np.isin(ids, owed.other_id[owed.owed_lat & side_exists]) & \
+            (snapshot.speed[key.rows] < v_ref - DROP_BACK_SLOWER)
+        return np.concatenate([[np.inf], np.where(ahead, np.where(holding, gap + DROP_BACK_M, gap), np.inf)])
 
     @staticmethod
     def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
@@ -296,10 +308,12 @@ class EpsilonPlanner:
                                                                                                    initial=np.inf)
         return np.concatenate([[np.inf], due]) if np.isfinite(due).any() else None
 
-    def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
+    def _policies(self, now: float, frame: RoadFrame, lane: int, held: frozenset[Lat] = frozenset()) -> list[Policy]:
         """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane
-        on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one);
-        an ongoing change goes on."""
+        on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one),
+        and not towards a side ``held`` by a lateral response the ego owes in an open episode (the guard would hold
+        it in its lane: planned, such a change only looked worth its navigation reward); an ongoing change goes
+        on."""
         cfg = self.config
         ongoing = self.manager.ongoing(now)
         if cfg.mode == "mpdm":
@@ -308,8 +322,9 @@ class EpsilonPlanner:
             out = [Policy(Lon.MAINTAIN, (lat,) * cfg.layers, durations) for lat in lats]
         else:
             out = valid_policies(ongoing, cfg.layers, cfg.layer_duration)
-        startable = {Lat.KEEP: True, Lat.LEFT: self.network.lane_left[lane] >= 0,
-                     Lat.RIGHT: self.network.lane_right[lane] >= 0}
+        startable = {Lat.KEEP: True,
+                     Lat.LEFT: cfg.lane_changes and self.network.lane_left[lane] >= 0 and Lat.LEFT not in held,
+                     Lat.RIGHT: cfg.lane_changes and self.network.lane_right[lane] >= 0 and Lat.RIGHT not in held}
         return [p for p in out if all(frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)
                                       for lat in p.lats)]
 
@@ -453,3 +468,10 @@ def _hermite(t: np.ndarray, knots: np.ndarray, values: np.ndarray, rates: np.nda
     u2, u3 = u * u, u * u * u
     return (2 * u3 - 3 * u2 + 1) * values[k] + (u3 - 2 * u2 + u) * span * rates[k] + \
         (-2 * u3 + 3 * u2) * values[k + 1] + (u3 - u2) * span * rates[k + 1]
+
+
+def _held_sides(owed: OwedResponses | None) -> frozenset[Lat]:
+    """The sides towards which the ego owes a lateral response in an open episode (it may not move that way)."""
+    if owed is None or not np.any(owed.owed_lat):
+        return frozenset()
+    return frozenset(Lat.LEFT if left else Lat.RIGHT for left in owed.other_is_left[owed.owed_lat])

@@ -187,3 +187,20 @@ def _clear_ahead(network: RoadNetwork, lane: int, pos: float, reach: float, targ
             return False
         left += float(network.lane_length[current])
     return True
+
+
+def passed(run_dir: Path, other_id: str, network: RoadNetwork | None = None) -> bool:
+    """Whether the ego of a run (with FCD) was ahead of ``other_id`` along the ego's route (front bumpers) at the
+    last step both were on the road, having been behind it before (it overtook it)."""
+    run_dir = Path(run_dir)
+    spec = load_scenario(run_dir / "scenario.toml")
+    network = network if network is not None else RoadNetwork.from_file(spec.net_file)
+    offsets = _route_offsets(network, spec.ego.route)
+    ahead = []
+    for _, ego, others in _fcd_steps(run_dir / "fcd.xml", spec.ego.id):
+        other = next((o for o in others if o["id"] == other_id), None)
+        if other is not None:
+            where = [_route_position(network, offsets, int(network.lane_indices([v["lane"]])[0]), float(v["pos"]))
+                     for v in (ego, other)]
+            ahead.append(where[0] > where[1])
+    return bool(ahead) and not ahead[0] and ahead[-1]
