@@ -38,6 +38,7 @@ from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import Crossing, stop_line
+from . import navigation
 from .frames import PlanningFrames
 from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
@@ -54,13 +55,6 @@ SPACING_SCALE_ACCELERATE = 0.75  # s0 and T factor of the 'accelerate' action
 MPDM_IDM = IdmParams(s0=2.5, headway=1.5, accel=2.0, comfort_brake=3.0)  # aggressiveness level 3 (epsilon.md §2.4)
 MPDM_PURSUIT_GAIN = 2.0  # [s] pure-pursuit look-ahead per m/s of every aggressiveness level
 MPDM_SPEED_STEP = 5.0  # [m/s] MPDM's speed command is within this of the ego's speed
-# A lane change the route makes mandatory is due this far before the lane ends, per change still to make: the
-# larger of [m] and [s] at the ego's speed (a change takes ~6-7 s: 4 consistent cycles, >= 2 s to its operation
-# time, ~3 s to cross).
-MANDATORY_REACH_M, MANDATORY_REACH_S = 200.0, 10.0
-# [m] kept beyond the gap a car that cut in left, while its episode's lateral duty holds the ego behind it, where
-# it is slower than the ego's reference speed by DROP_BACK_SLOWER [m/s] or more
-DROP_BACK_M, DROP_BACK_SLOWER = 10.0, 3.0
 # [m/s²] the ego's acceleration: epsilon.md §3.1's ego has 1.0 (the release's highway demo), half of what its agents,
 # its evasive mode and the MPDM baseline use; with it the ego took ~12 s from 10 to 13 m/s (docs/planner.md)
 EGO_ACCEL = 2.0
@@ -162,8 +156,8 @@ class EpsilonPlanner:
         v_ref = frame.chains.reference_speed(CURRENT, float(vehicles.s[0]), cfg.desired_speed)
         t_scene = time.perf_counter()
 
-        policies = self._policies(now, frame, lane, _held_sides(owed))
-        mandatory = self._mandatory(frame, float(vehicles.s[0]), v_ego)
+        policies = self._policies(now, frame, lane, navigation.held_sides(owed))
+        mandatory = navigation.mandatory_change(frame, float(vehicles.s[0]), v_ego)
         probs = self._intentions(frame, key, snapshot)
         horizon = float(sum(policies[0].durations))
         branched = uncertain_agents(probs) & intention_matters(frame, vehicles, key.chain, probs, horizon)
@@ -183,7 +177,7 @@ class EpsilonPlanner:
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
-        cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
+        cut_in_gap = navigation.cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
@@ -203,6 +197,8 @@ class EpsilonPlanner:
                           cfg.sim.ego_idm.headway if cfg.sim.rss_following else None,
                           None if cut_in_gap is None else np.isfinite(cut_in_gap[1:]))
         n_real = len(policies)
+        if navigation.change_stuck(self.manager.context, now, policies, policy_of, sim, float(vehicles.d[0])):
+            self.manager.call_off()
         cost = np.where(ev.valid, ev.cost, np.inf)
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
         chosen = self.manager.select(policies, ev.cost[:n_real], ev.valid[:n_real], now)
@@ -271,30 +267,6 @@ class EpsilonPlanner:
         return vehicles, params
 
     @staticmethod
-    def _cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles, owed: OwedResponses | None,
-                     frame: RoadFrame, v_ref: float) -> np.ndarray | None:
-        """[m] per vehicle column: the bumper gap now to a car ahead that the ego owes no longitudinal braking in
-        an open episode (inf elsewhere; None: no such car). Such a car cut in: RSS puts its gap on that car (rss.md
-        §5), so the ego keeps the gap it was left, not the RSS distance, and lets it grow back as the car pulls
-        away, rather than braking to restore the distance at once. But where that car is slower than the ego's
-        reference speed ``v_ref`` [m/s] by DROP_BACK_SLOWER or more and the episode's lateral duty holds the ego
-        in its lane on the side a lane is (the episode lasts until the gap is RSS-safe again), the ego keeps
-        DROP_BACK_M more than the gap: it drops back until the episode ends and it may pass (behind a car at its own
-        speed the gap would never grow back)."""
-        cut_in = owed.without_lon_duty() if owed is not None else frozenset()
-        if not cut_in:
-            return None
-        gap = vehicles.s[1:] - vehicles.s[0] - 0.5 * (vehicles.length[0] + vehicles.length[1:])
-        ids = snapshot.ids[key.rows]
-        ahead = np.isin(ids, list(cut_in)) & (gap >= 0.0)
-        if not np.any(ahead):
-            return None
-        side_exists = np.where(owed.other_is_left, frame.exists[LEFT], frame.exists[RIGHT])
-        holding = np.isin(ids, owed.other_id[owed.owed_lat & side_exists]) & \
-            (snapshot.speed[key.rows] < v_ref - DROP_BACK_SLOWER)
-        return np.concatenate([[np.inf], np.where(ahead, np.where(holding, gap + DROP_BACK_M, gap), np.inf)])
-
-    @staticmethod
     def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
                       response_time: float) -> np.ndarray | None:
         """[s from now] per vehicle column: when the ego's response time ends in an open episode in which it owes
@@ -327,24 +299,6 @@ class EpsilonPlanner:
                      Lat.RIGHT: cfg.lane_changes and self.network.lane_right[lane] >= 0 and Lat.RIGHT not in held}
         return [p for p in out if all(frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)
                                       for lat in p.lats)]
-
-    def _mandatory(self, frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
-        """The direction the ego must change to when its lane ends, or leaves its route, within reach: the route's
-        side (the fewest lane changes to its end, :func:`.route_lanes.lane_changes_needed`), else the side that
-        exists (left first). The reach grows with the changes still to make: MANDATORY_REACH per change."""
-        end = float(frame.end_s[CURRENT])
-        here, total = frame.chains.changes
-        if not np.isfinite(end) or end - s_ego >= max(total, 1) * max(MANDATORY_REACH_M, MANDATORY_REACH_S * v):
-            return None
-        if here:
-            return Lat.LEFT if here > 0 else Lat.RIGHT
-        if total:  # the changes are to be made on an edge ahead (e.g. into a deceleration lane that starts there)
-            return None
-        if frame.exists[LEFT]:
-            return Lat.LEFT
-        if frame.exists[RIGHT]:
-            return Lat.RIGHT
-        return None
 
     def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
         chain = key.chain
@@ -469,9 +423,3 @@ def _hermite(t: np.ndarray, knots: np.ndarray, values: np.ndarray, rates: np.nda
     return (2 * u3 - 3 * u2 + 1) * values[k] + (u3 - 2 * u2 + u) * span * rates[k] + \
         (-2 * u3 + 3 * u2) * values[k + 1] + (u3 - u2) * span * rates[k + 1]
 
-
-def _held_sides(owed: OwedResponses | None) -> frozenset[Lat]:
-    """The sides towards which the ego owes a lateral response in an open episode (it may not move that way)."""
-    if owed is None or not np.any(owed.owed_lat):
-        return frozenset()
-    return frozenset(Lat.LEFT if left else Lat.RIGHT for left in owed.other_is_left[owed.owed_lat])
