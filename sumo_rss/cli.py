@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, audit, report, nets, train-intent.
+"""The ``sumo-rss`` command line: run, batch, audit, report, view, nets, train-intent.
 
 Bad input (scenario files, options) prints one line ``sumo-rss: error: ...`` and exits with code 2;
 ``--debug`` shows the traceback instead.
@@ -16,6 +16,7 @@ from . import __version__
 from .errors import ScenarioError, SumoRssError
 from .rss.params import PRESETS
 from .scenario import CONTROLLERS, MAX_SEED
+from .view.command import add_view_command, run_view
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -36,6 +37,7 @@ _BATCH_EXAMPLES = """examples:
 """
 _REPORT_EXAMPLES = """examples:
   sumo-rss report results/default          # -> results/default/report.html and results/default/report/*.png
+  sumo-rss report results/default --no-views   # without each run's view.html (and the links to them)
 """
 _AUDIT_EXAMPLES = """examples:
   sumo-rss audit results/merge_onramp/3/fcd.xml --net networks/merge/merge.net.xml \\
@@ -155,9 +157,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     report = sub.add_parser("report", parents=[common], help="tables, PNG plots and report.html of a batch",
                             description="Summarise a batch folder: per-scenario responsibility, violation types, "
-                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML.",
+                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML "
+                                        "whose tables link each run's replay (view.html, written beside the run "
+                                        "where it is missing or older than the run).",
                             epilog=_REPORT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     report.add_argument("batch_dir", type=Path, help="a batch folder (with batch_summary.csv)")
+    report.add_argument("--no-views", dest="views", action="store_false",
+                        help="do not write each run's replay page (view.html, as 'sumo-rss view' writes it) nor "
+                             "link the tables' rows to them")
+    report.add_argument("--quiet", action="store_true", help="no progress bar")
 
     audit = sub.add_parser("audit", parents=[common], help="audit a SUMO FCD file offline",
                            description="Audit every vehicle pair of a SUMO FCD file for RSS responsibility and "
@@ -196,6 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
     audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
     audit.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    add_view_command(sub, common)
 
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
                           description="Build networks/<name>/<name>.net.xml from their plain-XML sources with "
@@ -338,7 +348,7 @@ def _interrupt(signum: int, frame: object) -> None:
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report.html import write_report
 
-    html = write_report(args.batch_dir)
+    html = write_report(args.batch_dir, views=args.views, progress=not args.quiet)
     print(f"report: {html}")
     return 0
 
@@ -353,6 +363,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     from .rss.auditor import ParamResolver
     from .rss.fcd import FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
+    from .view.trajectories import TRAJECTORY_FILE, TrajectoryRecorder
 
     if not args.fcd.is_file():
         raise FcdError(f"{args.fcd}: FCD file not found")
@@ -391,12 +402,15 @@ def _cmd_audit(args: argparse.Namespace) -> int:
             bar.update(done - bar.n)
 
         stop = _StopRequest.on_signals("the audit")
+        recorder = TrajectoryRecorder(args.net)  # every vehicle: what 'sumo-rss view' replays, without the FCD
         result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
                            collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop)
+                           run_id=run_id, signal_rule=signal_rule, on_progress=on_progress, stop=stop,
+                           record_states=True, on_snapshot=recorder.add)
         if not stop.requested:
             on_progress(bar.total)  # read to its end
     result.to_csv(args.out)
+    recorder.write(args.out / TRAJECTORY_FILE)
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
           f"violations, {len(result.collisions)} collisions -> {args.out}")
     return EXIT_INTERRUPTED if stop.requested else 0
@@ -462,7 +476,7 @@ def _print_warning(message: Warning | str, *_: object, **__: object) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
-               "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
+               "view": run_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
     try:
         with warnings.catch_warnings():
             if not args.debug:

@@ -1,8 +1,10 @@
 """Atomic writes (temp file in the same folder + rename): a reader sees the old file or the whole new one."""
 from __future__ import annotations
 
+import io
 import json
 import os
+import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -53,3 +55,19 @@ def write_csv(frame: pd.DataFrame, path: Path) -> None:
     """``frame`` without its index, floats with CSV_FLOAT_FORMAT, '\\n' line ends."""
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=False, float_format=CSV_FLOAT_FORMAT, lineterminator="\n")
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """``arrays`` as a compressed ``.npz`` (``numpy.load`` reads it), written atomically and byte for byte the same
+    for the same arrays: every member has a fixed time stamp (``numpy.savez`` stamps the current time). Arrays of
+    Python objects are refused (they would need pickle to read)."""
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, value in arrays.items():
+            value = np.asarray(value)
+            if value.dtype.hasobject:
+                raise TypeError(f"{path.name}: {name}: expected an array of numbers or strings, got objects")
+            buffer = io.BytesIO()
+            np.lib.format.write_array(buffer, value, allow_pickle=False)
+            member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            member.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(member, buffer.getvalue())

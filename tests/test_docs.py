@@ -103,8 +103,9 @@ def test_the_documented_python_api_exists_with_the_documented_parameters():
     assert len(resolved) >= 10
     for name, parameters in (("run_one", "spec out_dir variant fcd on_step controller stop"),
                              ("run_batch", "tasks out_dir executor progress"),
-                             ("Auditor", "network params run_id trace_class signal_rule"),
+                             ("Auditor", "network params run_id trace_class signal_rule record_states"),
                              ("audit_fcd", "fcd network params vehicles collisions tls_states ego_ids run_id "
-                                           "signal_rule on_progress stop"),
+                                           "signal_rule on_progress stop record_states on_snapshot"),
+                             ("write_view", "run_dir out net every geometry"),
                              ("EpsilonPlanner", "network params config")):
         assert list(inspect.signature(resolved[name]).parameters) == parameters.split(), name

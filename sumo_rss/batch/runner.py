@@ -2,7 +2,9 @@
 
 A run directory ``<out>/<scenario>[__<variant>]/<seed>/`` holds: ``manifest.json`` (versions, seed, parameter
 hash), ``summary.json``, the audit CSVs and ``rss_params.json``, ``ego_trace.csv``, ``pair_states.csv`` (the
-ego's episodes step by step), the resolved ``scenario.toml``, the SUMO inputs/outputs and logs.
+ego's episodes step by step), ``episode_states.npz`` (every episode step by step) and ``trajectories.npz`` (the
+vehicles near the ego, or all, per step: what ``sumo-rss view`` replays), the resolved ``scenario.toml``, the SUMO
+inputs/outputs and logs.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from ..trajectory import TrajectoryState
+from ..view.trajectories import NEAR_EGO_M, TRAJECTORY_FILE, TrajectoryRecorder
 from .spec import Task, variant_name
 
 SUMMARY_FILE = "summary.json"
@@ -155,7 +158,10 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         started = time.perf_counter()
         network = RoadNetwork.from_file(spec.net_file)
         resolver = param_resolver(spec)
-        auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule)
+        auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule,
+                          record_states=True)
+        every_vehicle = (spec.outputs.fcd if fcd is None else fcd) or spec.ego is None
+        recorder = TrajectoryRecorder(spec.net_file, near_ego_m=None if every_vehicle else NEAR_EGO_M)
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)
         report = getattr(driver, "summary", None)  # planner.json, and summary.json's 'planner'
         ego_rows = []
@@ -164,6 +170,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             while not session.finished:
                 snapshot = session.step()
                 auditor.observe(snapshot, session.new_collisions)
+                recorder.add(snapshot)
                 if session.ego_on_road:
                     k = snapshot.index_of(session.ego_id)
                     ego_rows.append((snapshot.time, snapshot.x[k], snapshot.y[k], snapshot.speed[k],
@@ -185,6 +192,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             raise SumoRssError(f"{work}: the run's folder was removed while the run was writing it (by another "
                                "process); its results would be incomplete")
         audit.to_csv(work)
+        recorder.write(work / TRAJECTORY_FILE)
         planner = report() if report is not None else None
         if planner is not None:
             write_json(work / PLANNER_FILE, planner)

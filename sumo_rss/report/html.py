@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import base64
 import html
+import sys
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -18,8 +19,10 @@ FIGURES = ("ego_responsibility", "responsibility", "violations", "pair_timeline"
 SUMMARY_COLUMNS_USED = ("run_id", "scenario", "variant", "seed", "status")  # of batch_summary.csv
 
 
-def write_report(batch_dir: Path) -> Path:
-    """Write the PNGs and report.html of a batch folder; returns the HTML path."""
+def write_report(batch_dir: Path, views: bool = True, progress: bool = False) -> Path:
+    """Write the PNGs and report.html of a batch folder; returns the HTML path. ``views``: also write each run's
+    replay page (``sumo-rss view``, where missing or older than the run) and link every table row to its runs'
+    pages; ``progress``: a bar while they are written."""
     batch_dir = Path(batch_dir)
     path = batch_dir / "batch_summary.csv"
     if not path.is_file():
@@ -54,9 +57,44 @@ def write_report(batch_dir: Path) -> Path:
             fig.savefig(tmp, dpi=100, format="png")
         plt.close(fig)
         images[name] = base64.b64encode(path.read_bytes()).decode("ascii")
-    page = _page(batch_dir, summary, ego, responsibility, broken, images)
+    links = _view_links(batch_dir, summary, progress) if views else {}
+    page = _page(batch_dir, summary, ego, responsibility, broken, images, links)
     out = batch_dir / "report.html"
     write_text(out, page)
+    return out
+
+
+def _view_links(batch_dir: Path, summary: pd.DataFrame, progress: bool) -> dict[str, str]:
+    """run_id → the link (relative to the report) of its replay page, for the successful runs that have one."""
+    from tqdm import tqdm
+
+    from ..view.page import write_run_views
+
+    run_ids = summary.run_id[summary.status == "ok"].astype(str).tolist()
+    with tqdm(total=len(run_ids), desc="views", unit="run", disable=not progress, file=sys.stderr) as bar:
+        pages = write_run_views((batch_dir / run_id for run_id in run_ids), on_done=bar.update)
+    return {run_id: (batch_dir / run_id / pages[batch_dir / run_id].name).relative_to(batch_dir).as_posix()
+            for run_id in run_ids if batch_dir / run_id in pages}
+
+
+def _with_views(table: pd.DataFrame, labels: pd.Series, summary: pd.DataFrame, links: dict[str, str]
+                ) -> pd.DataFrame:
+    """``table`` (rows: run labels) with a column 'views': a link to each of the row's runs' pages, by seed."""
+    runs = summary.assign(label=labels)
+    runs = runs[runs.run_id.astype(str).isin(links)]
+    cells = {label: " ".join(f"<a href='{html.escape(links[str(r.run_id)])}'>{html.escape(str(r.seed))}</a>"
+                             for r in group.sort_values("seed").itertuples()) for label, group in runs.groupby("label")}
+    return _escaped(table).assign(views=[cells.get(label, "") for label in table.index])
+
+
+def _escaped(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with its text cells and index escaped for HTML (it is then written with ``escape=False``)."""
+    out = table.copy()
+    for column in out.columns:
+        if out[column].dtype == object:
+            out[column] = out[column].map(lambda v: html.escape(v) if isinstance(v, str) else v)
+    out.index = pd.Index([html.escape(str(v)) for v in out.index], name=table.index.name)
+    out.columns = pd.Index([html.escape(str(v)) for v in out.columns], name=table.columns.name)
     return out
 
 
@@ -97,8 +135,17 @@ def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame
 
 
 def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibility: pd.DataFrame,
-          violations: pd.DataFrame, images: dict[str, str]) -> str:
+          violations: pd.DataFrame, images: dict[str, str], links: dict[str, str]) -> str:
     ok = int((summary.status == "ok").sum())
+    labels = run_label(summary)
+    runs = _escaped(_numbers_as_numbers(summary))
+    runs.insert(0, "view", [f"<a href='{html.escape(links[r])}'>view</a>" if r in links else ""
+                            for r in summary.run_id.astype(str)])
+    ego, responsibility = (_with_views(t, labels, summary, links) for t in (ego, responsibility))
+    per_label = _with_views(pd.DataFrame(index=violations.columns), labels, summary, links)["views"]
+    rules = _escaped(violations)
+    violations = pd.concat([rules, pd.DataFrame([per_label.tolist()], index=["views"], columns=rules.columns)])
+    violations.index.name = rules.index.name
 
     def image(name: str) -> list[str]:
         return [f"<img alt='{name}' src='data:image/png;base64,{images[name]}'>"] if name in images else []
@@ -111,26 +158,27 @@ def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibil
         "img{max-width:100%}</style></head><body>",
         f"<h1>sumo_rss batch report: {html.escape(batch_dir.name)}</h1>",
         f"<p>{ok} of {len(summary)} runs ok. Units: SI (s, m/s). One row per scenario and variant, its successful "
-        "runs' seeds pooled. Responsibility follows RSS (see docs/outputs.md): a car is responsible for an "
-        "episode if it broke its proper response in it.</p>",
+        "runs' seeds pooled; 'views' links each run's replay (by seed). Responsibility follows RSS (see "
+        "docs/outputs.md): a car is responsible for an episode if it broke its proper response in it.</p>",
         "<h2>The ego's danger episodes</h2>",
         "<p>Episodes of a pair with the ego, by who was responsible; the ego's mean speed is the mean over the "
-        "runs of each run's mean while the ego was on the road.</p>", ego.to_html(float_format=lambda v: f"{v:.3f}"),
+        "runs of each run's mean while the ego was on the road.</p>",
+        ego.to_html(float_format=lambda v: f"{v:.3f}", escape=False),
         *image("ego_responsibility"),
         "<h2>Every vehicle pair's danger episodes</h2>",
         "<p>Episodes of every pair of vehicles (the ego's included), by whose violation made the episode someone's "
         "responsibility: the ego's, the ego's and a background car's, background cars' only, nobody's.</p>",
-        responsibility.to_html(), *image("responsibility"),
+        responsibility.to_html(escape=False), *image("responsibility"),
         "<h2>Violations by rule</h2>",
         "<p>Intervals in which a vehicle broke a rule of its proper response (every vehicle; one episode can hold "
         "several); signal rules are judged at signalised junctions when the scenario's signal rule is on.</p>",
-        *image("violations"), violations.to_html(),
+        *image("violations"), violations.to_html(escape=False),
     ]
     for name, title in (("pair_timeline", "A danger episode of the ego, step by step"), ("ego_speed", "Ego speed")):
         if name in images:
             parts += [f"<h2>{title}</h2>", *image(name)]
-    parts += ["<h2>Runs</h2>", _numbers_as_numbers(summary).to_html(index=False, float_format=lambda v: f"{v:.3f}",
-                                                                    na_rep=""), "</body></html>"]
+    parts += ["<h2>Runs</h2>", runs.to_html(index=False, float_format=lambda v: f"{v:.3f}", na_rep="", escape=False),
+              "</body></html>"]
     return "\n".join(parts)
 
 

@@ -17,6 +17,7 @@ from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
+from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
 from .params import RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
@@ -27,8 +28,6 @@ from .situations import PairSituations, evaluate, vehicle_frame
 INTERSECTION_KEY = np.int64(1) << np.int64(62)  # marks a pair's intersection situation (its own episodes)
 
 COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
-PAIR_STATE_COLUMNS = ["run_id", "episode_key", "time_s", "lon_gap_m", "lon_d_min_m", "lat_gap_m", "lat_d_min_m",
-                      "dangerous"]
 
 
 @dataclass(frozen=True)
@@ -99,10 +98,11 @@ class AuditResult:
     collisions: pd.DataFrame
     params: dict[str, dict[str, float]]
     pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
+    episode_states: EpisodeStates | None = None  # per step of every episode (``Auditor(record_states=True)``)
 
     def to_csv(self, directory: str | Path) -> None:
-        """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced) and the parameters
-        they were judged with, rss_params.json, atomically."""
+        """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced, episode_states.npz
+        when recorded) and the parameters they were judged with, rss_params.json, atomically."""
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         frames = [("episodes", self.episodes), ("violations", self.violations), ("collisions", self.collisions)]
@@ -110,6 +110,8 @@ class AuditResult:
             frames.append(("pair_states", self.pair_states))
         for name, frame in frames:
             write_csv(frame, directory / f"{name}.csv")
+        if self.episode_states is not None:
+            self.episode_states.write(directory / STATE_FILE)
         write_json(directory / PARAMS_FILE, self.params)
 
 
@@ -128,16 +130,18 @@ class Auditor:
     """RSS auditor of one run. Feed it every snapshot in time order, then call :meth:`finish`."""
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
-                 trace_class: str | None = None, signal_rule: bool = True):
+                 trace_class: str | None = None, signal_rule: bool = True, record_states: bool = False):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
-        avoidable yellow-light entries as violations (docs/rss.md)."""
+        avoidable yellow-light entries as violations (docs/rss.md). ``record_states``: record every episode's
+        steps, with the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
-        self._traces: list[tuple] = []  # per traced step: (episode keys, time, gap arrays...)
+        self.record_states = record_states
+        self._states = EpisodeStateTrace(trace_class, record_states) if trace_class or record_states else None
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
@@ -182,8 +186,8 @@ class Auditor:
             accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=params,
             new_vehicle=new_vehicle, areas=areas,
             area_number=area_number))
-        if self.trace_class is not None:
-            self._trace(snapshot.time, keys, situations)
+        if self._states is not None:
+            self._states.step(snapshot.time, self._tracker, keys, situations)
         if self._signal_rule is not None:
             self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
@@ -194,25 +198,6 @@ class Auditor:
     def owed_by(self, vehicle_id: str) -> OwedResponses:
         """The proper responses ``vehicle_id`` owes right now (open episodes after the last observed step)."""
         return self._tracker.owed_by(vehicle_id)
-
-    def _trace(self, time: float, keys: np.ndarray, situations: PairSituations) -> None:
-        traced, episode_keys = self._tracker.open_episodes(self.trace_class)
-        if not episode_keys:
-            return
-        order = np.argsort(keys)
-        rows = order[np.searchsorted(keys, traced, sorter=order)]
-        self._traces.append((episode_keys, np.full(len(episode_keys), time), situations.lon_gap[rows],
-                             situations.lon_d_min[rows], situations.lat_gap[rows], situations.lat_d_min[rows],
-                             situations.dangerous[rows]))
-
-    def _pair_states(self) -> pd.DataFrame:
-        """The traced pair states of the whole run as one table (built once, at the end)."""
-        if not self._traces:
-            return pd.DataFrame(columns=PAIR_STATE_COLUMNS)
-        keys, *columns = zip(*self._traces)
-        table = {"run_id": self.run_id, "episode_key": [k for step in keys for k in step]}
-        table.update({name: np.concatenate(values) for name, values in zip(PAIR_STATE_COLUMNS[2:], columns)})
-        return pd.DataFrame(table)
 
     def record_collisions(self, collisions: Iterable[CollisionInput]) -> None:
         """Join collisions of the current step to their pairs' open episodes (blame = the episode's)."""
@@ -240,10 +225,10 @@ class Auditor:
         violations = violations.sort_values(["t_start_s", "episode_key", "vehicle_id", "constraint"], kind="stable",
                                             ignore_index=True)
         collisions = pd.DataFrame(self._collisions, columns=COLLISION_COLUMNS)
-        pair_states = None
-        if self.trace_class is not None:
-            pair_states = self._pair_states()
-        return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states)
+        keys = self._tracker.serial_keys
+        pair_states = self._states.pair_states(self.run_id, keys) if self.trace_class is not None else None
+        states = self._states.episode_states(keys) if self.record_states else None
+        return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states, states)
 
 
 def _concat_rows(*frames: pd.DataFrame) -> pd.DataFrame:

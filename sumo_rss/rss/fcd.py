@@ -401,13 +401,15 @@ class FcdReader:
 def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicles: VehicleInfo | None = None,
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
               run_id: str = "", signal_rule: bool = True, on_progress: Callable[[int], None] | None = None,
-              stop: Callable[[], bool] | None = None) -> AuditResult:
+              stop: Callable[[], bool] | None = None, record_states: bool = False,
+              on_snapshot: Callable[[WorldSnapshot], None] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(bytes)``: after every time step,
     how much of the FCD file (its size on disk) has been read. ``stop()`` is asked after every time step: True ends
-    the audit there, as if the file ended there (with a warning that names the step)."""
+    the audit there, as if the file ended there (with a warning that names the step). ``record_states``: as
+    :class:`Auditor`'s. ``on_snapshot(snapshot)``: after every audited time step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -416,7 +418,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
-    auditor = Auditor(network, params, run_id, signal_rule=signal_rule)
+    auditor = Auditor(network, params, run_id, signal_rule=signal_rule, record_states=record_states)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
@@ -431,6 +433,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         else:
             found = overlap_contacts(snapshot, auditor.observe(snapshot), network)
             auditor.record_collisions(contacts.step(found))
+        if on_snapshot is not None:
+            on_snapshot(snapshot)
         if stop is not None and stop():
             warnings.warn(f"{fcd}: stopped after time step {snapshot.time:g} s: audited up to there", stacklevel=2)
             return auditor.finish()

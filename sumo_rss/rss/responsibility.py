@@ -80,6 +80,7 @@ class _Episodes:
     """Open episodes, sorted by key (struct of arrays)."""
 
     keys: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    serial: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # 0, 1, ... in opening order
     a_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     b_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
     uids: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))  # of (a, b)
@@ -145,6 +146,19 @@ class OwedResponses:
         return frozenset(self.other_id[self.same_direction & ~self.must_brake].tolist())
 
 
+@dataclass(frozen=True, eq=False)
+class JudgedStep:
+    """The owed responses' bounds of one step, per open episode (by ``serial``) and car (column 0: a, 1: b); NaN
+    where a bound does not apply (not owed, the step at t_b, a car stopped after ρ, the pair not evaluated)."""
+
+    serial: np.ndarray  # int64, one per open episode
+    accel: np.ndarray  # [m/s²] the car's acceleration
+    accel_max: np.ndarray  # [m/s²] a ≤ this: a_acc during ρ, −b_min (−b_corr) after it
+    accel_min: np.ndarray  # [m/s²] a ≥ this: −b_max (the front car)
+    lat_speed: np.ndarray  # [m/s] the car's lateral speed towards the other
+    lat_speed_max: np.ndarray  # [m/s] the lateral response's envelope
+
+
 def lateral_speed_bound(u0: Any, tau: Any, rho: Any, a_lat: Any, b_lat: Any) -> np.ndarray:
     """The lateral response's bound on a car's speed towards the other [m/s], ``tau`` s after the trigger at
     which it was ``u0`` (rss.md §5): it may grow at a_lat during ρ, must then fall at b_lat to ≤ 0 and stay there
@@ -171,6 +185,9 @@ class ResponsibilityTracker:
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._ended_now: dict[int, dict] = {}  # pair key → record of an episode that ended at the current step
         self._last_time: float | None = None
+        self._next_serial = 0
+        self.serial_keys: dict[int, str] = {}  # serial → episode key of every closed episode
+        self.judged: JudgedStep | None = None  # the bounds of the last step (None: no episode was judged)
 
     # -----------------------------------------------------------------------------------------------------
     def step(self, step: StepInput) -> None:
@@ -178,6 +195,7 @@ class ResponsibilityTracker:
         if self._last_time is not None and step.time <= self._last_time + TIME_EPS:
             raise ValueError(f"time must increase: {step.time} s after {self._last_time} s")
         self._store_closed()
+        self.judged = None
         sit = step.situations
         order = np.argsort(step.keys, kind="stable")
         keys = step.keys[order]
@@ -212,11 +230,12 @@ class ResponsibilityTracker:
         self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
         self._last_time = step.time
 
-    def open_episodes(self, vclass: str) -> tuple[np.ndarray, list[str]]:
-        """(pair keys, episode keys) of the open episodes that involve a car of class ``vclass``."""
+    def open_episodes(self, vclass: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pair keys, serials, involves) of the open episodes, sorted by pair key; ``involves``: the episode has a
+        car of class ``vclass`` (every episode where None)."""
         e = self._open
-        idx = np.flatnonzero((e.a_class == vclass) | (e.b_class == vclass))
-        return e.keys[idx], [self._episode_key(int(i)) for i in idx]
+        involves = np.ones(len(e), dtype=bool) if vclass is None else (e.a_class == vclass) | (e.b_class == vclass)
+        return e.keys, e.serial, involves
 
     def owed_by(self, vehicle_id: str) -> OwedResponses:
         """The responses ``vehicle_id`` owes in its open episodes."""
@@ -299,7 +318,8 @@ class ResponsibilityTracker:
         for k in keys:
             self._episode_count[int(k)] = self._episode_count.get(int(k), 0) + 1
         fresh = _Episodes(
-            keys=keys.astype(np.int64), a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
+            keys=keys.astype(np.int64), serial=np.arange(self._next_serial, self._next_serial + n, dtype=np.int64),
+            a_id=step.ids[a].astype(object), b_id=step.ids[b].astype(object),
             uids=np.column_stack([step.uids[a], step.uids[b]]),
             a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
             kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
@@ -313,6 +333,7 @@ class ResponsibilityTracker:
             v_start=np.zeros((n, 2, N_CONSTRAINTS)), v_last=np.zeros((n, 2, N_CONSTRAINTS)),
             v_worst=np.zeros((n, 2, N_CONSTRAINTS)), v_bound=np.zeros((n, 2, N_CONSTRAINTS)),
             v_excess=np.full((n, 2, N_CONSTRAINTS), -np.inf))
+        self._next_serial += n
         merged = _Episodes.concat([self._open, fresh]) if len(self._open) else fresh
         self._open = merged.take(np.argsort(merged.keys, kind="stable"))
 
@@ -380,6 +401,9 @@ class ResponsibilityTracker:
         excess = sign * (actual - bound)
         violating = applies & judged[:, None, None] & (excess > tolerance)
         self._roll_violations(violating, actual, bound, excess, t)
+        shown = np.where(applies & judged[:, None, None], bound, np.nan)
+        self.judged = JudgedStep(e.serial, accel, np.fmin(shown[..., 0], shown[..., 1]), shown[..., 2],
+                                 np.where(pair, u, np.nan), shown[..., 3])
 
     def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
                          t: float) -> None:
@@ -420,8 +444,10 @@ class ResponsibilityTracker:
         for i in np.flatnonzero(mask):
             t_end = float(e.t_last[i]) if end_of_data else time
             resp = e.responsible[i]
+            key = self._episode_key(i)
+            self.serial_keys[int(e.serial[i])] = key
             records.append({
-                "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_a": e.a_id[i],
+                "run_id": self.run_id, "episode_key": key, "vehicle_a": e.a_id[i],
                 "vehicle_b": e.b_id[i], "class_a": e.a_class[i], "class_b": e.b_class[i],
                 "episode_index": self._episode_count[int(e.keys[i])],
                 "situation": SITUATION_CODES[e.kind[i]].value, "t_b_s": float(e.t_b[i]), "t_end_s": t_end,

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..angles import wrap_angle
+from ..jit import jitable
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import (combine_lateral, combine_opposite, combine_same_dir, is_safe_distance, lateral_reach, lon_reach,
@@ -152,6 +153,7 @@ class PairSituations:
                               wrong_way_b=column("wrong_way_b", False, bool))
 
 
+@jitable
 def extent_across(length: Any, width: Any, cos_rel: Any, sin_rel: Any) -> np.ndarray:
     """[m] how much of a lane's width a box (``length`` x ``width``) takes up at a heading whose cos/sin against
     the lane are ``cos_rel``/``sin_rel``: length·|sin| + width·|cos|. (Along the lane: swap length and width.)"""
