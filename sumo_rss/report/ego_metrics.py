@@ -172,16 +172,18 @@ def _same_lane_index(network: RoadNetwork, a: int, b: int) -> bool:
 def _clear_ahead(network: RoadNetwork, lane: int, pos: float, reach: float, target: float,
                  route: tuple[str, ...]) -> bool:
     """No lane end and no speed limit below ``target`` within ``reach`` m ahead of ``pos`` on ``lane`` and its
-    successors along the route."""
-    route_edges = set(int(e) for e in network.edge_indices(route))
+    successors along the route. A lane that leaves the route (one the ego must change out of, as the through lanes
+    beside an exit) ends there for the ego; at the route's last edge the ego arrives."""
+    route_edges = [int(e) for e in network.edge_indices(route)]
+    on_route = set(route_edges)
     left, current = network.lane_length[lane] - pos, lane
     while left < reach:
         if network.lane_ends[current]:
             return False
         nexts = [k for k in network.lane_successors[current]
-                 if int(network.edge_exit[network.lane_edge[k]]) in route_edges]
+                 if int(network.edge_exit[network.lane_edge[k]]) in on_route]
         if not nexts:
-            return True  # the end of the route: the ego arrives
+            return int(network.lane_edge[current]) == route_edges[-1]
         current = nexts[0]
         if network.lane_speed[current] < target - 1e-6:
             return False
