@@ -30,8 +30,8 @@ run: install
 test: install
 	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS)
 
-acceptance: install  # the EPSILON closed-loop acceptance runs (20 seeds x 2 scenarios on 2 processes, ~12 minutes)
-	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_closed_loop.py -rxX
+acceptance: install  # the long checks: issue 48's EPSILON ego on seeds 0-19 of every scenario family against sumo and sumo_restricted, the closed-loop runs, the real-network invariants on a Monaco-size run
+	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_planner_acceptance.py tests/test_planner_closed_loop.py -rxX
 	# the real-network invariants on a Monaco-size run, where $$SUMO_RSS_REALNETS (default /work/realnets) has one
 	SUMO_RSS_ACCEPTANCE=1 $(BIN)/python -m pytest -q tests/test_real_networks_acceptance.py -rs
 

@@ -5,12 +5,15 @@
 - ``families``: :func:`family_figures` per scenario family of FAMILIES, one closed-loop run with the EPSILON ego
   planning every step at 10 Hz and the every-pair audit: planning-cycle median / p95 / p99 over the cycles with
   <= KEY_AGENTS_MAX key agents (and over all cycles), the key-agent counts, and the real-time factor from the ego's
-  departure (incl. writing the outputs). Add a family by adding its scenario name to FAMILIES.
+  departure (incl. writing the outputs). Add a family by adding its scenario name to FAMILIES (bench/_ego_comparison.py).
 - ``cycle``: :func:`cycle_times`, the cycle with 10 / 20 / 40 key agents on synthetic highway snapshots (the full
   cycle and its motion-layer part).
 - ``closed_loop_highway_dense``: :func:`compare_controllers`, ego speed / responsibility / RMS jerk of the epsilon
   (with and without the SSC motion layer, and planning every second step), sumo and mpdm controllers on the same
-  highway_dense seeds. (The controller comparison per family, with sumo_restricted, extends this function.)
+  highway_dense seeds.
+- ``ego_comparison``: :func:`_ego_comparison.compare`, epsilon vs sumo vs sumo_restricted vs mpdm side by side on
+  every family and seeds SEEDS in one batch (route travel time, settled mean speed, responsible episodes and
+  seconds, lane changes, merge delay; per seed and summed up).
 
 Targets: issue 48: a cycle with <= 20 key agents median <= 15 ms and p99 <= 40 ms on every family; closed loop
 >= 5x real time on highway_dense and >= 4x on intersection_tls and merge_onramp; a fresh clone's first run compiles
@@ -39,6 +42,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _ego_comparison import FAMILIES, compare  # noqa: E402
 from _results import arguments, record  # noqa: E402
 
 from sumo_rss import load_scenario  # noqa: E402
@@ -48,7 +52,6 @@ from sumo_rss.road.network import RoadNetwork  # noqa: E402
 from sumo_rss.rss.auditor import ParamResolver  # noqa: E402
 from sumo_rss.sim.snapshot import WorldSnapshot  # noqa: E402
 
-FAMILIES = ("highway_dense", "highway_sparse", "merge_onramp", "intersection_tls", "intersection_priority")
 RTF_TARGETS = {"highway_dense": 5.0, "intersection_tls": 4.0, "merge_onramp": 4.0}  # closed loop, x real time
 FAMILY_S = 150.0  # simulated seconds of a family's closed-loop run (the ego departs at 20-30 s)
 FAMILY_SEED = 0
@@ -268,7 +271,8 @@ def main() -> None:
     network = RoadNetwork.from_file(REPO / "networks" / "highway" / "highway.net.xml")
     figures: dict = {"jit": jit_times(), "families": {family: family_figures(family) for family in FAMILIES},
                      "cycle": {str(n): cycle_times(network, n) for n in (10, 20, 40)},
-                     "closed_loop_highway_dense": compare_controllers()}
+                     "closed_loop_highway_dense": compare_controllers(),
+                     "ego_comparison": compare(FAMILIES, seeds=SEEDS)}
     figures["targets"] = targets(figures)
     record("planner", figures, options)
     print(json.dumps({key: figures[key] for key in ("jit", "families", "targets")}, indent=1))

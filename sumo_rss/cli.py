@@ -141,7 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration", type=_positive_float, metavar="S",
                      help="simulated seconds (default: the scenario's)")
     run.add_argument("--controller", choices=CONTROLLERS,
-                     help="who drives the ego: EPSILON, SUMO or the MPDM baseline (default: the scenario's)")
+                     help="who drives the ego: EPSILON, SUMO, SUMO held to RSS by the ego's guard (sumo_restricted) "
+                          "or the MPDM baseline (default: the scenario's)")
     run.add_argument("--out", type=Path, default=Path("results"), help="results folder (default: results/)")
     run.add_argument("--fcd", action="store_true",
                      help="also write SUMO's FCD trace (fcd.xml) with accelerations and lateral position/speed")
@@ -164,7 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--rss-preset", nargs="+", choices=PRESETS, metavar="P",
                        help="sweep these RSS presets (replaces the files' rss_preset grid)")
     batch.add_argument("--controller", nargs="+", choices=CONTROLLERS, metavar="C",
-                       help="sweep these ego controllers: sumo, epsilon, mpdm (replaces the files' controller grid)")
+                       help="sweep these ego controllers: sumo, sumo_restricted, epsilon, mpdm (replaces the files' "
+                            "controller grid)")
     batch.add_argument("--out", type=Path, help="batch folder (default: results/<name of the first SPEC>)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
 

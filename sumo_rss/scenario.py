@@ -28,7 +28,7 @@ CAR_FOLLOW_MODELS = ("Krauss", "KraussPS", "KraussOrig1", "IDM", "EIDM", "ACC", 
 LANE_CHANGE_MODELS = ("LC2013",)
 VEHICLE_CLASSES = ("passenger", "truck", "trailer", "bus", "coach", "delivery", "motorcycle", "emergency")
 DEPART_SPEEDS = ("max", "desired", "avg", "random", "speedLimit", "last")
-CONTROLLERS = ("sumo", "epsilon", "mpdm")
+CONTROLLERS = ("sumo", "sumo_restricted", "epsilon", "mpdm")
 BACKGROUND_DISTRIBUTION, EGO_TYPE = "background", "ego_type"  # vType ids of the generated route file
 MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer
 _NOT_IN_IDS = " \t\n\r|\\'\";,<>&"  # characters SUMO refuses in vehicle and vType ids
@@ -105,6 +105,7 @@ class PlannerOverrides:
     scenarios_k: int = 4  # CFB: most likely intention combinations kept
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch
     motion_layer: bool = True  # SSC corridor + Bézier QP; False executes the behaviour trajectory (docs/motion.md)
+    lane_changes: bool = True  # False: only lane-keeping policies (the planner without lateral actions)
     rss_preset: str | None = None  # None: the scenario's RSS parameters for the ego class
     costs: dict[str, float] = field(default_factory=dict)  # CostWeights fields that differ from epsilon.md §9
 
@@ -425,6 +426,7 @@ def _read_planner(t: TableReader) -> PlannerOverrides:
         scenarios_k=t.integer("scenarios_k", d.scenarios_k, min=1, max=64),
         intention_net=t.boolean("intention_net", d.intention_net),
         motion_layer=t.boolean("motion_layer", d.motion_layer),
+        lane_changes=t.boolean("lane_changes", d.lane_changes),
         rss_preset=t.string("rss_preset", None, choices=PRESETS) if t.has("rss_preset") else None,
         costs=_read_cost_weights(t.table("costs")) if t.has("costs") else {},
     )

@@ -15,7 +15,7 @@ from sumo_rss.road.build import build_network, network_dirs, without_generator_h
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.sumo_home import sumo_tool
 
-NAMES = ["highway", "merge", "intersection_tls", "intersection_priority"]
+NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_priority"]
 
 
 def _net(name: str) -> sumolib.net.Net:
@@ -78,6 +78,18 @@ def test_merge_acceleration_lane_ends_and_ramp_feeds_it():
     assert {c.getToLane().getID() for c in net.getLane("mw_merge_1").getOutgoing()} == {"mw_out_0"}
 
 
+def test_exit_deceleration_lane_is_reached_by_a_lane_change_and_leads_only_onto_the_ramp():
+    net = _net("highway_exit")
+    assert [net.getEdge(e).getLaneNumber() for e in ("ex_in", "ex_decel", "ex_main", "ex_ramp")] == [3, 4, 3, 1]
+    decel = net.getLane("ex_decel_0")
+    assert decel.getLength() >= 200.0 and decel.getSpeed() == pytest.approx(22.22)
+    assert decel.getIncoming() == []  # entered only by a lane change from ex_decel_1
+    assert {c.getToLane().getID() for c in decel.getOutgoing()} == {"ex_ramp_0"}
+    for k in (1, 2, 3):  # the motorway lanes go straight on, and never onto the ramp
+        assert {c.getToLane().getID() for c in net.getLane(f"ex_decel_{k}").getOutgoing()} == {f"ex_main_{k - 1}"}
+    assert {c.getToLane().getID() for c in net.getLane("ex_in_0").getOutgoing()} == {"ex_decel_1"}
+
+
 def test_tls_intersection_has_left_turn_lanes_and_protected_and_permissive_phases():
     net = _net("intersection_tls")
     for arm in "NESW":
@@ -114,7 +126,7 @@ def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_
     proc = subprocess.run([sys.executable, "-m", "sumo_rss", "nets", "check", "--root", str(root)],
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 2
-    assert proc.stdout.splitlines() == ["highway: STALE (run: sumo-rss nets build)",
+    assert proc.stdout.splitlines() == ["highway: STALE (run: sumo-rss nets build)", "highway_exit: up to date",
                                         "intersection_priority: up to date", "intersection_tls: up to date"]
     assert proc.stderr.splitlines() == [f"sumo-rss: error: netconvert failed for {root / 'merge' / 'merge.netccfg'}: "
                                         "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]
@@ -132,7 +144,7 @@ def test_nets_check_names_a_misspelt_source_attribute_and_a_missing_net(tmp_path
     proc = subprocess.run([sys.executable, "-m", "sumo_rss", "nets", "check", "--root", str(root)],
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 2
-    assert proc.stdout.splitlines() == ["intersection_priority: up to date",
+    assert proc.stdout.splitlines() == ["highway_exit: up to date", "intersection_priority: up to date",
                                         "intersection_tls: MISSING intersection_tls.net.xml (run: sumo-rss nets build)",
                                         "merge: up to date"]
     assert "Error: attribute 'numLane' is not declared for element 'edge' In file 'highway.edg.xml'" in proc.stderr

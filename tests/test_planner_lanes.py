@@ -27,27 +27,31 @@ def test_chains_follow_the_route_through_junctions():
     s, d = chains.project(CURRENT, np.array([100.0, 100.0]), np.array([-5.25, -1.75]))
     np.testing.assert_allclose(s, [100.0, 100.0])
     np.testing.assert_allclose(d, [0.0, 3.5])
-    # Limit 33.33 m/s; the 2000 m curve allows √(1.2·2000) = 49 m/s: the reference speed is floor(33.33).
-    assert chains.reference_speed(CURRENT, 800.0, 200.0, desired=40.0) == 33.0
+    # Limit 33.33 m/s; the 2000 m curve allows √(3·2000) = 77 m/s: the reference speed is the limit (not floored).
+    assert chains.reference_speed(CURRENT, 800.0, desired=40.0) == pytest.approx(33.33)
 
 
-def test_the_reference_speed_reads_the_limits_ahead_of_the_ego_not_behind_or_far_beyond_it():
-    """epsilon.md §2.7 scans from the ego's position. S_in_1 (13.89 m/s, 289.6 m) leads into the left turn's
-    junction lanes (9.26 m/s): 50 m along the approach the next 50 m allow floor(13.89) = 13 m/s; within 20 m of
-    the junction, floor(9.26) = 9 m/s. On the acceleration lane (33.33 m/s) the ramp behind it (22.22 m/s) no
-    longer caps an ego that wants 30 m/s."""
+def test_the_reference_speed_is_the_speed_from_which_the_ego_can_still_slow_down_to_what_lies_ahead():
+    """epsilon.md §2.7 scans from the ego's position; here every lower speed ahead (a bend's √(3/|κ|), a lane's
+    limit where it starts) is an envelope √(v² + 2·1 m/s²·distance). S_in_1 (13.89 m/s, 289.6 m) leads into the
+    left turn's junction lanes (9.26 m/s); the sharpest bend is κ = 0.1109 1/m at s = 299.28 (SUMO's middle three
+    samples of the 90° turn in 19.3 m): 5.20 m/s there. The release took floor(min(...)) over v²/1.67 ahead, so the
+    ego cruised at 13 m/s and slowed to 3 m/s from 115 m before the turn."""
     net = _net("intersection_tls")
     chains = lane_chains(net, int(net.lane_indices(["S_in_1"])[0]), net.edge_indices(["S_in", "W_out"]))
-    assert chains.reference_speed(CURRENT, 50.0, 50.0, desired=13.89) == 13.0
-    assert chains.reference_speed(CURRENT, 270.0, 20.0, desired=13.89) == 9.0
-    # In the turn (90° in 19.3 m; 0.111 1/m through SUMO's middle three samples): floor(√(1.2/0.111)) = 3 m/s.
-    # The heading gradient read 0.155 1/m where SUMO splits the turn in two internal lanes, i.e. 2 m/s.
-    assert chains.reference_speed(CURRENT, 290.0, 20.0, desired=13.89) == 3.0
+    assert chains.reference_speed(CURRENT, 50.0, desired=13.89) == 13.89
+    # 20 m before the line: the bend's √(5.20² + 2·29.28) = 9.25 m/s, below the junction lane's √(9.26² + 2·19.6).
+    assert chains.reference_speed(CURRENT, 270.0, desired=13.89) == pytest.approx(9.25, abs=0.01)
+    assert chains.reference_speed(CURRENT, 300.0, desired=13.89) == pytest.approx(5.20, abs=0.01)
+    assert chains.reference_speed(CURRENT, 310.0, desired=13.89) == 13.89  # out of the turn, on W_out_1
+    # A window's cap (the yield rule's crossing speeds): the slowest speed over it, the bend's within 20 m of 280.
+    assert chains.speed_cap(CURRENT, 280.0, 20.0, 13.89) == pytest.approx(5.20, abs=0.01)
+    assert chains.speed_cap(CURRENT, 250.0, 20.0, 13.89) == 13.89
     net = _net("merge")
     chains = lane_chains(net, int(net.lane_indices(["mw_merge_0"])[0]), net.edge_indices(["mw_merge", "mw_out"]))
     assert str(net.lane_ids[chains.lanes[chains.chain_of[CURRENT]][0]]) == "ramp_0"  # the ramp is in the chain
-    assert chains.reference_speed(CURRENT, 100.0, 100.0, desired=30.0) == 30.0
-    assert chains.reference_speed(CURRENT, -100.0, 50.0, desired=30.0) == 22.0  # on the ramp
+    assert chains.reference_speed(CURRENT, 100.0, desired=30.0) == 30.0
+    assert chains.reference_speed(CURRENT, -100.0, desired=30.0) == 22.22  # on the ramp: its limit holds at once
 
 
 def test_acceleration_lane_chain_ends_and_has_no_right_neighbour():
@@ -144,3 +148,27 @@ def test_a_neighbour_chain_ends_where_its_lane_turns_off_the_route():
     frame = RoadFrame.build(chains)
     assert np.abs(np.diff(frame.centre[RIGHT])).max() < 0.2  # [m] per grid step: parallel to the ego's lane
     assert frame.end_s[RIGHT] == np.inf  # it goes on (off the route): no standing obstacle at its end
+
+
+def test_the_route_says_which_lane_changes_the_ego_still_has_to_make_and_where_its_lane_leaves_the_route():
+    """SUMO's "best lanes" for the planner's mandatory changes. highway_exit: ex_in (3 lanes, 1096 m) leads lane by
+    lane into lanes 1-3 of ex_decel (226.34 m as built, its 8 m junction lanes between); lane 0 of ex_decel is the
+    deceleration lane, the only way onto ex_ramp. From ex_in's left lane that is 3 changes, 2 of them on ex_in
+    (the rest cannot be made earlier), and its lane leaves the route at the end of ex_decel_3, 1096 + 8 + 226.34 m
+    on. From the acceleration lane of the merge: 1 change to the left, within its 270.31 m."""
+    net = _net("highway_exit")
+    route = net.edge_indices(["ex_in", "ex_decel", "ex_ramp"])
+    for lane, changes, end in (("ex_in_2", (-2, 3), 1330.34), ("ex_in_0", (0, 1), 1330.34),
+                               ("ex_decel_1", (-1, 1), 226.34), ("ex_decel_0", (0, 0), np.inf)):
+        k = int(net.lane_indices([lane])[0])
+        chains = lane_chains(net, k, route[list(route).index(net.lane_edge[k]):])
+        assert chains.changes == changes, lane
+        assert chains.route_end == pytest.approx(end, abs=0.01), lane
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["ex_in_2"])[0]), route))
+    assert frame.end_s[CURRENT] == pytest.approx(1330.34, abs=0.01)  # the ego's own lane ends there for it
+    net = _net("merge")
+    chains = lane_chains(net, int(net.lane_indices(["mw_merge_0"])[0]), net.edge_indices(["mw_merge", "mw_out"]))
+    assert chains.changes == (1, 1) and chains.route_end == pytest.approx(270.31, abs=0.01)
+    highway = _net("highway")
+    chains = lane_chains(highway, int(highway.lane_indices(["hw0_2"])[0]), highway.edge_indices(["hw0", "hw1", "hw2"]))
+    assert chains.changes == (0, 0) and chains.route_end == np.inf

@@ -106,10 +106,11 @@ def versions() -> dict[str, str]:
 class EgoController(Protocol):
     """Your own ego driver for :func:`run_one` (the EPSILON planner's ``EgoDriver`` is one)."""
 
-    def command(self, snapshot: WorldSnapshot, auditor: Auditor) -> TrajectoryState:
+    def command(self, snapshot: WorldSnapshot, auditor: Auditor) -> TrajectoryState | None:
         """Where the ego is at the end of the coming step (``snapshot.time + step_s``; e.g.
         ``trajectory.state_at(snapshot.time + step_s)``), from the current snapshot and the live audit
-        (``auditor.owed_by(ego_id)``: the proper responses the ego owes now)."""
+        (``auditor.owed_by(ego_id)``: the proper responses the ego owes now); None: SUMO's own models move it in
+        this step (after any limits the controller set through libsumo, as ``sumo_restricted`` does)."""
         ...  # pragma: no cover
 
 
@@ -185,7 +186,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                                      snapshot.accel[k], snapshot.lane_id[k], snapshot.lane_pos[k],
                                      snapshot.lat_pos[k]))
                     if driver is not None and not session.finished:
-                        session.place_ego(driver.command(snapshot, auditor))
+                        command = driver.command(snapshot, auditor)
+                        if command is not None:  # None: SUMO's own models move the ego (sumo_restricted)
+                            session.place_ego(command)
                 if on_step is not None:
                     on_step(session.steps * spec.step_s)
                 if stop is not None and not session.finished and stop():
@@ -279,10 +282,15 @@ def partial_run_is_live(partial: Path) -> bool:
 
 
 def _ego_driver(spec: ScenarioSpec, network: RoadNetwork, resolver: ParamResolver):
-    """The planner driving the ego (None when SUMO drives it). The planner judges RSS with the scenario's
-    parameters unless ``[ego.planner] rss_preset`` names another preset; the guard always uses the auditor's."""
+    """The planner driving the ego (None when SUMO drives it; the RSS restrictor of SUMO's models for
+    sumo_restricted). The planner judges RSS with the scenario's parameters unless ``[ego.planner] rss_preset``
+    names another preset; the guard always uses the auditor's."""
     if spec.ego is None or spec.ego.controller == "sumo":
         return None
+    if spec.ego.controller == "sumo_restricted":
+        from ..planner.restricted import RestrictedSumoDriver
+
+        return RestrictedSumoDriver(spec, network, resolver)
     from ..planner.driver import EgoDriver
 
     preset = spec.ego.planner.rss_preset

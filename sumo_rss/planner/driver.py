@@ -26,7 +26,7 @@ def planner_config(spec: ScenarioSpec) -> PlannerConfig:
         return replace(PlannerConfig.mpdm(ego.desired_speed), output_step=spec.step_s, replan_every=o.replan_every)
     return PlannerConfig(desired_speed=ego.desired_speed, layers=o.layers, layer_duration=o.layer_duration_s,
                          sim_step=o.sim_step_s, scenarios_k=o.scenarios_k, replan_every=o.replan_every,
-                         output_step=spec.step_s, intention_net=o.intention_net,
+                         output_step=spec.step_s, intention_net=o.intention_net, lane_changes=o.lane_changes,
                          motion=MotionSettings(enabled=o.motion_layer), costs=replace(CostWeights(), **o.costs))
 
 
@@ -72,6 +72,7 @@ class EgoDriver:
         stats = {"cycles": int(times.size), "backups": self.planner.stats.backups,
                  "lane_changes_started": self.planner.manager.lane_changes_started,
                  "lane_changes_completed": self.planner.manager.lane_changes_completed,
+                 "lane_changes_called_off": self.planner.manager.lane_changes_called_off,
                  "guard": self.guard.counts.as_dict(),
                  "intention_net_beliefs": self.planner.stats.learned_beliefs,
                  "stop_line_cycles": {k or "none": v for k, v in sorted(self.planner.stats.stop_lines.items())},

@@ -27,7 +27,7 @@ from ..road.routes import RouteTable
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import Trajectory
 from .behavior.cfb import branch_scenarios, uncertain_agents
-from .behavior.controllers import IdmParams
+from .behavior.controllers import IdmParams, VehicleLimits
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import Navigation, evaluate
@@ -38,7 +38,9 @@ from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import Crossing, stop_line
-from .lanes import CURRENT, LEFT, RIGHT, lane_chains, lanes_consistent_with
+from . import navigation
+from .frames import PlanningFrames
+from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
 from .road_frame import RoadFrame
@@ -53,6 +55,10 @@ SPACING_SCALE_ACCELERATE = 0.75  # s0 and T factor of the 'accelerate' action
 MPDM_IDM = IdmParams(s0=2.5, headway=1.5, accel=2.0, comfort_brake=3.0)  # aggressiveness level 3 (epsilon.md §2.4)
 MPDM_PURSUIT_GAIN = 2.0  # [s] pure-pursuit look-ahead per m/s of every aggressiveness level
 MPDM_SPEED_STEP = 5.0  # [m/s] MPDM's speed command is within this of the ego's speed
+# [m/s²] the ego's acceleration: epsilon.md §3.1's ego has 1.0 (the release's highway demo), half of what its agents,
+# its evasive mode and the MPDM baseline use; with it the ego took ~12 s from 10 to 13 m/s (docs/planner.md)
+EGO_ACCEL = 2.0
+EGO_SIM = SimSettings(ego_idm=IdmParams(accel=EGO_ACCEL), ego_limits=VehicleLimits(max_accel=EGO_ACCEL))
 
 
 @dataclass(frozen=True)
@@ -69,7 +75,8 @@ class PlannerConfig:
     replan_every: int = 1
     output_step: float = 0.1  # [s] sampling of the returned trajectory (the co-simulation step)
     intention_net: bool = True  # CFB uses the shipped intention network where lanes branch (epsilon mode)
-    sim: SimSettings = SimSettings()
+    lane_changes: bool = True  # False: lane-keeping policies only (no lateral actions)
+    sim: SimSettings = EGO_SIM
     costs: CostWeights = CostWeights()
     manager: ManagerSettings = ManagerSettings()
     motion: MotionSettings = MotionSettings()
@@ -122,10 +129,8 @@ class EpsilonPlanner:
         self.config = config
         self.manager = Manager(config.manager, config.layer_duration, config.desired_speed)
         self.stats = PlannerStats()
-        self._frames: dict[tuple[int, tuple[int, ...]], RoadFrame] = {}
+        self.frames = PlanningFrames(network)
         self._curvature = 0.0
-        self._last_lane: tuple[WorldSnapshot, int, tuple[int, RoadFrame]] | None = None
-        self._last_centre: tuple[WorldSnapshot, int, RoadFrame, tuple[np.ndarray, ...]] | None = None
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         self.belief = _learned_belief(network, config.output_step * config.replan_every) \
@@ -148,11 +153,11 @@ class EpsilonPlanner:
         key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
-        v_ref = self._reference_speed(frame, float(vehicles.s[0]), v_ego)
+        v_ref = frame.chains.reference_speed(CURRENT, float(vehicles.s[0]), cfg.desired_speed)
         t_scene = time.perf_counter()
 
-        policies = self._policies(now, frame, lane)
-        mandatory = self._mandatory(frame, float(vehicles.s[0]), v_ego)
+        policies = self._policies(now, frame, lane, navigation.held_sides(owed))
+        mandatory = navigation.mandatory_change(frame, float(vehicles.s[0]), v_ego)
         probs = self._intentions(frame, key, snapshot)
         horizon = float(sum(policies[0].durations))
         branched = uncertain_agents(probs) & intention_matters(frame, vehicles, key.chain, probs, horizon)
@@ -167,12 +172,12 @@ class EpsilonPlanner:
         params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
         ego_params = _row(params, 0)
         s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
-        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.reference_speed(
+        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.speed_cap(
             CURRENT, s_front + start, length, cfg.desired_speed))  # as the rollouts drive it through the junction
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
-        cut_in_gap = self._cut_in_gaps(snapshot, key, vehicles, owed)
+        cut_in_gap = navigation.cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
@@ -192,6 +197,8 @@ class EpsilonPlanner:
                           cfg.sim.ego_idm.headway if cfg.sim.rss_following else None,
                           None if cut_in_gap is None else np.isfinite(cut_in_gap[1:]))
         n_real = len(policies)
+        if navigation.change_stuck(self.manager.context, now, policies, policy_of, sim, float(vehicles.d[0])):
+            self.manager.call_off()
         cost = np.where(ev.valid, ev.cost, np.inf)
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
         chosen = self.manager.select(policies, ev.cost[:n_real], ev.valid[:n_real], now)
@@ -228,48 +235,8 @@ class EpsilonPlanner:
         return self.planning_lane(snapshot, ego)[1]
 
     def planning_lane(self, snapshot: WorldSnapshot, ego: int) -> tuple[int, RoadFrame]:
-        """The ego's lane for planning and its frame: the lane nearest to the ego's centre (epsilon.md §2.5 step
-        4), i.e. SUMO's lane or its neighbour on the edge. SUMO puts a vehicle on the lane under its front bumper,
-        so half-way through a lane change its centre may still be in the lane it leaves. The last answer is kept:
-        the guard asks again for the snapshot just planned on."""
-        last = self._last_lane
-        if last is not None and last[0] is snapshot and last[1] == ego:
-            return last[2]
-        lane = int(self.network.lane_indices(snapshot.lane_id[ego:ego + 1])[0])
-        route = snapshot.route_edges[ego][int(snapshot.route_index[ego]):] if snapshot.route_edges else ()
-        edges = tuple(self.network.edge_indices(route).tolist())
-        frame = self._frame(lane, edges)
-        s, d, _ = self._ego_centre(snapshot, ego, frame)
-        side = {LEFT: self.network.lane_left, RIGHT: self.network.lane_right}.get(int(frame.nearest_chain(s, d)[0]))
-        if side is not None and side[lane] >= 0:
-            lane = int(side[lane])
-            frame = self._frame(lane, edges)
-        self._last_lane = (snapshot, ego, (lane, frame))
-        return lane, frame
-
-    def _ego_centre(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The ego's centre (s, d, heading_rel) [1] in ``frame`` from its front bumper (the last answer is kept:
-        the lane choice and the vehicle setup both ask, mostly in the same frame). Read-only arrays."""
-        last = self._last_centre
-        if last is not None and last[0] is snapshot and last[1] == ego and last[2] is frame:
-            return last[3]
-        centre = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
-                                        0.5 * float(snapshot.length[ego]))
-        for array in centre:
-            array.flags.writeable = False
-        self._last_centre = (snapshot, ego, frame, centre)
-        return centre
-
-    def _frame(self, lane: int, edges: tuple[int, ...]) -> RoadFrame:
-        """The frame around ``lane`` along the route ``edges`` (cached)."""
-        frame = self._frames.get((lane, edges))
-        if frame is None:
-            if len(self._frames) > 64:
-                self._frames.clear()
-            frame = RoadFrame.build(lane_chains(self.network, lane, np.array(edges, dtype=int)))
-            self._frames[(lane, edges)] = frame
-        return frame
+        """The ego's lane for planning and its frame (:meth:`PlanningFrames.planning_lane`)."""
+        return self.frames.planning_lane(snapshot, ego)
 
     @staticmethod
     def _rear_reach(snapshot: WorldSnapshot, ego: int, params: RssParamArrays) -> np.ndarray:
@@ -282,7 +249,7 @@ class EpsilonPlanner:
     def _vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, key: KeyVehicles,
                   all_params: RssParamArrays) -> tuple[Vehicles, RssParamArrays]:
         rows = np.concatenate([[ego], key.rows]).astype(int)
-        s_e, d_e, h_e = self._ego_centre(snapshot, ego, frame)
+        s_e, d_e, h_e = self.frames.ego_centre(snapshot, ego, frame)
         chain_e = frame.nearest_chain(s_e, d_e)
         n = rows.size
         ego_column, limits = np.arange(n) == 0, self.config.sim
@@ -300,22 +267,6 @@ class EpsilonPlanner:
         return vehicles, params
 
     @staticmethod
-    def _cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles,
-                     owed: OwedResponses | None) -> np.ndarray | None:
-        """[m] per vehicle column: the bumper gap now to a car ahead that the ego owes no longitudinal braking in
-        an open episode (inf elsewhere; None: no such car). Such a car cut in: RSS puts its gap on that car (rss.md
-        §5), so the ego keeps the gap it was left, not the RSS distance, and lets it grow back as the car pulls
-        away, rather than braking to restore the distance at once."""
-        cut_in = owed.without_lon_duty() if owed is not None else frozenset()
-        if not cut_in:
-            return None
-        gap = vehicles.s[1:] - vehicles.s[0] - 0.5 * (vehicles.length[0] + vehicles.length[1:])
-        ahead = np.isin(snapshot.ids[key.rows], list(cut_in)) & (gap >= 0.0)
-        if not np.any(ahead):
-            return None
-        return np.concatenate([[np.inf], np.where(ahead, gap, np.inf)])
-
-    @staticmethod
     def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
                       response_time: float) -> np.ndarray | None:
         """[s from now] per vehicle column: when the ego's response time ends in an open episode in which it owes
@@ -329,14 +280,12 @@ class EpsilonPlanner:
                                                                                                    initial=np.inf)
         return np.concatenate([[np.inf], due]) if np.isfinite(due).any() else None
 
-    def _reference_speed(self, frame: RoadFrame, s_ego: float, v: float) -> float:
-        """epsilon.md §2.7: the reference speed over :func:`_speed_reach` ahead of the ego's centre at ``s_ego``."""
-        return frame.chains.reference_speed(CURRENT, s_ego, _speed_reach(v), self.config.desired_speed)
-
-    def _policies(self, now: float, frame: RoadFrame, lane: int) -> list[Policy]:
+    def _policies(self, now: float, frame: RoadFrame, lane: int, held: frozenset[Lat] = frozenset()) -> list[Policy]:
         """The DCP-tree's policies whose lanes exist. A change starts only towards a neighbour of the ego's lane
-        on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one);
-        an ongoing change goes on."""
+        on its edge (SUMO changes lanes within an edge; a ramp beside the motorway before they join is not one),
+        and not towards a side ``held`` by a lateral response the ego owes in an open episode (the guard would hold
+        it in its lane: planned, such a change only looked worth its navigation reward); an ongoing change goes
+        on."""
         cfg = self.config
         ongoing = self.manager.ongoing(now)
         if cfg.mode == "mpdm":
@@ -345,20 +294,11 @@ class EpsilonPlanner:
             out = [Policy(Lon.MAINTAIN, (lat,) * cfg.layers, durations) for lat in lats]
         else:
             out = valid_policies(ongoing, cfg.layers, cfg.layer_duration)
-        startable = {Lat.KEEP: True, Lat.LEFT: self.network.lane_left[lane] >= 0,
-                     Lat.RIGHT: self.network.lane_right[lane] >= 0}
+        startable = {Lat.KEEP: True,
+                     Lat.LEFT: cfg.lane_changes and self.network.lane_left[lane] >= 0 and Lat.LEFT not in held,
+                     Lat.RIGHT: cfg.lane_changes and self.network.lane_right[lane] >= 0 and Lat.RIGHT not in held}
         return [p for p in out if all(frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)
                                       for lat in p.lats)]
-
-    def _mandatory(self, frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
-        """The direction the ego must change to when its lane ends within reach (the route goes on)."""
-        end = float(frame.end_s[CURRENT])
-        if np.isfinite(end) and end - s_ego < max(150.0, 8.0 * v):
-            if frame.exists[LEFT]:
-                return Lat.LEFT
-            if frame.exists[RIGHT]:
-                return Lat.RIGHT
-        return None
 
     def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
         chain = key.chain
@@ -482,3 +422,4 @@ def _hermite(t: np.ndarray, knots: np.ndarray, values: np.ndarray, rates: np.nda
     u2, u3 = u * u, u * u * u
     return (2 * u3 - 3 * u2 + 1) * values[k] + (u3 - 2 * u2 + u) * span * rates[k] + \
         (-2 * u3 + 3 * u2) * values[k + 1] + (u3 - u2) * span * rates[k + 1]
+

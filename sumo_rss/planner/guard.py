@@ -19,11 +19,13 @@ Every restriction that changes the command beyond the guard's own margins is cou
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
+from ..rss.params import RssParamArrays
 from ..rss.responsibility import OwedResponses, lateral_speed_bound
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
@@ -75,6 +77,21 @@ def avoiding_decel(gap: np.ndarray, v: float, v_lead: np.ndarray, b_lead: np.nda
     return np.where(least <= MIN_DECEL, 0.0, np.minimum(least, MAX_DECEL))
 
 
+def local_scene(snapshot: WorldSnapshot, ego: int, frame: RoadFrame
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, np.ndarray]:
+    """The cars within NEIGHBOURHOOD of the ego in ``frame``: their snapshot rows, centres (s, d) [m] and headings
+    relative to the frame [rad], the ego's position among them (its centre from its bumper, as the planner places
+    it: RoadFrame.bumper_at) and the others' positions."""
+    cx, cy = snapshot.centres()
+    near = np.flatnonzero(np.hypot(cx - cx[ego], cy - cy[ego]) < NEIGHBOURHOOD)
+    s, d, h = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
+    me = int(np.flatnonzero(near == ego)[0])
+    s_c, d_c, h_c = frame.centre_of_bumper(snapshot.x[ego], snapshot.y[ego], snapshot.heading[ego],
+                                           0.5 * float(snapshot.length[ego]))
+    s[me], d[me], h[me] = s_c[0], d_c[0], h_c[0]
+    return near, s, d, h, me, np.delete(np.arange(near.size), me)
+
+
 class ProperResponseGuard:
     def __init__(self, params: ParamResolver, step: float):
         self.params = params
@@ -88,19 +105,11 @@ class ProperResponseGuard:
         c.steps += 1
         p_all = self.params.arrays(snapshot)
         p_e = p_all.take(np.array([ego]))
-        cx, cy = snapshot.centres()
-        near = np.flatnonzero(np.hypot(cx - cx[ego], cy - cy[ego]) < NEIGHBOURHOOD)
-        s, d, h = frame.to_frame(cx[near], cy[near], snapshot.heading[near])
-        me = int(np.flatnonzero(near == ego)[0])
-        others = np.delete(np.arange(near.size), me)
+        near, s, d, h, me, others = local_scene(snapshot, ego, frame)
         half = 0.5 * float(snapshot.length[ego])
-        # The ego's own centre from its bumper, as the planner placed it (RoadFrame.bumper_at), now and planned.
-        s_c, d_c, h_c = frame.centre_of_bumper(np.array([snapshot.x[ego], planned.x]),
-                                               np.array([snapshot.y[ego], planned.y]),
-                                               np.array([snapshot.heading[ego], planned.heading]), half)
-        s[me], d[me], h[me] = s_c[0], d_c[0], h_c[0]
+        s_c, d_c, h_c = frame.centre_of_bumper(planned.x, planned.y, planned.heading, half)
         s0, d0, v0 = float(s[me]), float(d[me]), float(snapshot.speed[ego])
-        s1, d1, h1 = float(s_c[1]), float(d_c[1]), float(h_c[1])
+        s1, d1, h1 = float(s_c[0]), float(d_c[0]), float(h_c[0])
         accel = (planned.speed - v0) / dt
         t_next = snapshot.time + dt
 
@@ -188,12 +197,7 @@ class ProperResponseGuard:
             u_towards = np.where(other_left, u_plan, -u_plan)
 
             def lat_min(u_other: np.ndarray, u_ego: float) -> np.ndarray:
-                """Safe lateral distances [m] for the others' and the ego's own lateral speeds (+ = left), each
-                car's reach with its own parameters (rss.md §2)."""
-                return formulas.combine_lateral(
-                    formulas.lateral_reach(np.where(other_left, -u_other, u_other), p_o),
-                    formulas.lateral_reach(np.where(other_left, u_ego, -u_ego), p_e),
-                    p_o.lat_fluctuation_margin, p_e.lat_fluctuation_margin)
+                return lateral_safe_distances(other_left, u_other, u_ego, p_o, p_e)
 
             u_other = snapshot.lat_speed[near[others]]
             lat_min_now = lat_min(u_other, float(snapshot.lat_speed[ego]))
@@ -222,3 +226,12 @@ class ProperResponseGuard:
         d_new = d1 + (u_plan - u_planned) * dt
         x, y, heading = frame.bumper_at(np.array([s_new]), np.array([d_new]), np.array([h1]), half)
         return TrajectoryState(float(x[0]), float(y[0]), float(heading[0]), v1, (v1 - v0) / dt)
+
+
+def lateral_safe_distances(other_left: np.ndarray, u_other: Any, u_ego: Any, p_o: RssParamArrays, p_e: RssParamArrays
+             ) -> np.ndarray:
+    """Safe lateral distances [m] between the ego and cars on its left (``other_left``) or right, for their and
+    the ego's lateral speeds (+ = left), each car's reach with its own parameters (rss.md §2)."""
+    return formulas.combine_lateral(formulas.lateral_reach(np.where(other_left, -u_other, u_other), p_o),
+                                    formulas.lateral_reach(np.where(other_left, u_ego, -u_ego), p_e),
+                                    p_o.lat_fluctuation_margin, p_e.lat_fluctuation_margin)

@@ -9,8 +9,12 @@ import numpy as np
 from ..road.curvature import vertex_curvature
 from ..road.frenet import LaneShapes
 from ..road.network import RoadNetwork
+from . import route_lanes
 
-CURVE_LAT_ACCEL = 1.2  # [m/s²] lateral acceleration limit of the reference speed (epsilon.md §2.7)
+# [m/s²] lateral acceleration of the reference speed in bends (epsilon.md §2.7 has 1.2, the release's highway demo
+# value: a left turn at 3 m/s where SUMO's cars take it at 9.26; docs/planner.md "Not timid")
+CURVE_LAT_ACCEL = 3.0
+REFERENCE_BRAKE = 1.0  # [m/s²] the reference speed falls towards a lower speed ahead as braking at this would
 RIGHT, CURRENT, LEFT = 0, 1, 2  # chain order
 CONSISTENT_LANES = 20  # lanes searched along the successors for a lane-change context (epsilon.md §2.7)
 
@@ -25,6 +29,9 @@ class LaneChains:
     limits [m/s], ``curve_s[c]`` / ``curve_kappa[c]`` where chain c bends (s as in :meth:`project`) and how
     sharply (|κ| [1/m], road/curvature.py), ``width[c]`` its narrowest lane [m], ``dead_end[c]`` whether chain c's
     last lane ends for good (no successor, e.g. an acceleration lane) rather than being cut at the planning range.
+    ``route_end``: where the ego's own lane leaves its route if it stays on it (s as in :meth:`project`; inf: it
+    follows the route to its end), ``changes``: the lane changes it must still make to follow its route (on this
+    edge, + = left; and in all: :func:`.route_lanes.lane_changes_needed`).
     A neighbour chain starts beside the first lane along the ego's chain that has such a neighbour, so the
     motorway beside an on-ramp is known before the ego reaches it.
     """
@@ -39,6 +46,8 @@ class LaneChains:
     curve_kappa: tuple[np.ndarray, ...]
     width: np.ndarray
     dead_end: np.ndarray
+    route_end: float = np.inf
+    changes: tuple[int, int] = (0, 0)
 
     def exists(self, which: int) -> bool:
         return bool(self.chain_of[which] >= 0)
@@ -49,14 +58,31 @@ class LaneChains:
         s, d, _ = self.shapes.project(np.full(len(np.atleast_1d(x)), row), np.atleast_1d(x), np.atleast_1d(y))
         return s - self.start_s[row], d
 
-    def reference_speed(self, which: int, s_from: float, horizon: float, desired: float) -> float:
-        """floor(min(desired, speed limits, √(a_lat/|κ|))) over [s_from, s_from + horizon] of chain ``which``
-        (s as in :meth:`project`) [m/s]: the lanes' limits and the curvature ahead of s_from, not behind it."""
+    def speed_cap(self, which: int, s_from: float, length: float, desired: float) -> float:
+        """min(desired, speed limits, √(a_lat/|κ|)) over [s_from, s_from + length] of chain ``which`` (s as in
+        :meth:`project`) [m/s]: the lanes' limits and the curvature ahead of s_from, not behind it."""
         row = int(self.chain_of[which])
         s, kappa = self.curve_s[row], self.curve_kappa[row]
-        window = (s >= s_from - 1.0) & (s <= s_from + horizon)
+        window = (s >= s_from - 1.0) & (s <= s_from + length)
         v_curve = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[window], 1e-9)).min(initial=np.inf)
-        return float(np.floor(min(desired, self.speed_limit(which, s_from, horizon), v_curve)))
+        return float(min(desired, self.speed_limit(which, s_from, length), v_curve))
+
+    def reference_speed(self, which: int, s_from: float, desired: float, brake: float = REFERENCE_BRAKE) -> float:
+        """The speed [m/s] from which the ego at ``s_from`` on chain ``which`` can still slow down at ``brake``
+        [m/s²] to every lower speed ahead: a bend's √(a_lat/|κ|) at the bend, a lane's speed limit where the lane
+        starts (the limit of the lane it is on holds at once), at most ``desired``."""
+        row = int(self.chain_of[which])
+        reach = desired * desired / (2.0 * brake) + 1.0  # beyond this no lower speed ahead matters
+        s, kappa = self.curve_s[row], self.curve_kappa[row]
+        bends = (s >= s_from - 1.0) & (s <= s_from + reach)
+        v_bend = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[bends], 1e-9))
+        starts, limits = self.lane_start[row], self.lane_speed[row]
+        ends = np.append(starts[1:], np.inf)
+        here = (starts <= s_from) & (ends > s_from)
+        ahead = (starts > s_from) & (starts <= s_from + reach)
+        envelope = np.sqrt(np.concatenate([v_bend, limits[ahead]]) ** 2 +
+                           2.0 * brake * np.maximum(np.concatenate([s[bends], starts[ahead]]) - s_from, 0.0))
+        return float(min(desired, limits[here].min(initial=np.inf), envelope.min(initial=np.inf)))
 
     def speed_limit(self, which: int, s_from: float, horizon: float) -> float:
         """The lowest speed limit [m/s] of chain ``which``'s lanes over [s_from, s_from + horizon] (inf: none)."""
@@ -111,8 +137,11 @@ def lane_chains(network: RoadNetwork, lane: int, route: np.ndarray, forward: flo
         bend_s, kappa = vertex_curvature(shapes.points[row, :n], shapes.cumulative[row, :n])
         curve_s.append(bend_s - offset)
         curve_kappa.append(kappa)
+    on_route = tuple(int(e) for e in route if e >= 0)
     return LaneChains(shapes, chain_of, tuple(chains), np.array(start_s), tuple(lane_start), tuple(lane_speed),
-                      tuple(curve_s), tuple(curve_kappa), np.array(widths), np.array(dead_end, dtype=bool))
+                      tuple(curve_s), tuple(curve_kappa), np.array(widths), np.array(dead_end, dtype=bool),
+                      route_lanes.route_end(network, lane, on_route) if on_route else np.inf,
+                      route_lanes.lane_changes_needed(network, lane, on_route) if on_route else (0, 0))
 
 
 def lanes_consistent_with(network: RoadNetwork, chain: tuple[int, ...] | list[int], limit: int = CONSISTENT_LANES

@@ -31,7 +31,7 @@ class FrameCells:
 class RoadFrame:
     """``centre[c, g]``: d of chain c's centre line at s = s0 + g·GRID_STEP (edge values continued where the
     chain does not reach; ``extent[c]`` is where it does). ``end_s[c]``: where chain c's lane ends for good
-    (inf if it goes on), ``lane_width[c]`` its narrowest lane [m]. Chains that do not exist copy the current
+    (inf if it goes on; the ego's own chain also ends where its lane leaves the ego's route), ``lane_width[c]`` its narrowest lane [m]. Chains that do not exist copy the current
     chain (``exists[c]`` False)."""
 
     chains: LaneChains
@@ -76,6 +76,8 @@ class RoadFrame:
             extent[which] = (s[0], s[-1])
             if chains.dead_end[row]:
                 end_s[which] = s[-1]
+        # The ego's own lane ends where it leaves the route (an exit it must take from another lane).
+        end_s[CURRENT] = min(end_s[CURRENT], chains.route_end)
         return cls(chains, float(grid[0]), centre, extent, end_s, exists, widths,
                    np.arctan(np.diff(centre, axis=1) / GRID_STEP))
 

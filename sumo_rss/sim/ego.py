@@ -1,4 +1,5 @@
-"""Actuation of the ego through libsumo: hand it to an external planner and place it each step."""
+"""Actuation of the ego through libsumo: hand it to an external planner and place it each step, or leave it to
+SUMO's own models within the limits of an RSS guard (``controller = "sumo_restricted"``)."""
 from __future__ import annotations
 
 import libsumo
@@ -12,6 +13,13 @@ KEEP_ROUTE_EXACT = 2  # moveToXY: exact position (incl. lateral), any edge; the 
 SPEED_MODE_DEFAULT = 31  # SUMO's own safe-speed checks
 LANE_CHANGE_MODE_DEFAULT = 1621  # SUMO's own lane-change model (its default)
 SPEED_RELEASE = -1.0  # setSpeed value that hands the speed back to SUMO's car-following model
+# Restricted: SUMO's checks (safe speed, acceleration, right of way, red lights) stay on for a speed cap, except
+# 'regard maximum deceleration', so that a cap may brake beyond the vType's decel (the guard's emergency braking).
+SPEED_MODE_RESTRICTED = 27
+# Restricted: SUMO makes no lane change of its own, but still computes the ones it wants (getLaneChangeState);
+# requested changes respect the other drivers' speed and braking gaps, as SUMO's default mode treats them.
+LANE_CHANGE_MODE_ON_REQUEST = 512
+LCA_LEFT, LCA_RIGHT, LCA_BLOCKED, LCA_CHANGING = 0x2, 0x4, 0x3E00, 0x40000000  # SUMO's lane-change state bits
 
 
 def take_control(vehicle_id: str) -> None:
@@ -34,3 +42,34 @@ def release(vehicle_id: str) -> None:
     libsumo.vehicle.setSpeedMode(vehicle_id, SPEED_MODE_DEFAULT)
     libsumo.vehicle.setLaneChangeMode(vehicle_id, LANE_CHANGE_MODE_DEFAULT)
     libsumo.vehicle.setSpeed(vehicle_id, SPEED_RELEASE)
+
+
+def restrict(vehicle_id: str) -> None:
+    """Leave ``vehicle_id`` to SUMO's models under external limits: speed caps (:func:`cap_speed`) and, where
+    :func:`own_lane_changes` says so, lane changes only on request (:func:`change_lane`)."""
+    libsumo.vehicle.setSpeedMode(vehicle_id, SPEED_MODE_RESTRICTED)
+
+
+def own_lane_changes(vehicle_id: str, allowed: bool) -> None:
+    """Let SUMO's lane-change model change lanes on its own (its default mode), or only on request."""
+    libsumo.vehicle.setLaneChangeMode(vehicle_id, LANE_CHANGE_MODE_DEFAULT if allowed else LANE_CHANGE_MODE_ON_REQUEST)
+
+
+def cap_speed(vehicle_id: str, speed: float | None) -> None:
+    """At most ``speed`` [m/s] at the end of the coming step (SUMO's own model may choose less); None: no cap."""
+    libsumo.vehicle.setSpeed(vehicle_id, SPEED_RELEASE if speed is None else max(speed, 0.0))
+
+
+def wanted_lane_change(vehicle_id: str) -> int:
+    """The lane change SUMO's lane-change model wants now and finds unblocked: +1 left, -1 right, 0 none (also
+    while a change is under way)."""
+    for direction, bit in ((1, LCA_LEFT), (-1, LCA_RIGHT)):
+        state = libsumo.vehicle.getLaneChangeState(vehicle_id, direction)[0]  # without TraCI's influence
+        if state & bit and not state & (LCA_BLOCKED | LCA_CHANGING):
+            return direction
+    return 0
+
+
+def change_lane(vehicle_id: str, direction: int, hold_s: float) -> None:
+    """Ask SUMO to change one lane to the left (+1) or right (-1), holding the new lane for ``hold_s`` [s]."""
+    libsumo.vehicle.changeLane(vehicle_id, libsumo.vehicle.getLaneIndex(vehicle_id) + direction, hold_s)

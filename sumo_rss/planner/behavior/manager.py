@@ -60,6 +60,7 @@ class Manager:
         self._proposals: list[tuple[Lat, int, float]] = []
         self.lane_changes_started = 0
         self.lane_changes_completed = 0
+        self.lane_changes_called_off = 0
 
     def ongoing(self, now: float) -> Action:
         """The action in force now; its lateral part is kept only while a lane-change context is active."""
@@ -122,6 +123,12 @@ class Manager:
         self.last_trigger = now
         self.lane_changes_started += 1
         self._proposals.clear()
+
+    def call_off(self) -> None:
+        """Drop the lane-change context (a discretionary change that cannot get going: see EpsilonPlanner.plan);
+        the cool-down since its trigger still applies to the next proposal."""
+        self.context = None
+        self.lane_changes_called_off += 1
 
     def commit(self, policy: Policy, now: float) -> None:
         self.policy, self.policy_start = policy, now
