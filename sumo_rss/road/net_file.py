@@ -125,12 +125,16 @@ class NetLane:
 
     def getShape(self) -> list[tuple[float, float]]:
         """The centre line's points (x, y) [m] (a z coordinate is dropped)."""
+        return [(x, y) for x, y, _ in self.getShape3D()]
+
+    def getShape3D(self) -> list[tuple[float, float, float]]:
+        """The centre line's points (x, y, z) [m] (z = 0 where the network gives none)."""
         points = []
         for point in self._shape.split():
             xyz = point.split(",")
             if len(xyz) not in (2, 3):
                 raise ValueError(f"lane {self._id}: invalid shape point {point!r}, expected x,y or x,y,z")
-            points.append((float(xyz[0]), float(xyz[1])))
+            points.append((float(xyz[0]), float(xyz[1]), float(xyz[2]) if len(xyz) == 3 else 0.0))
         return points
 
     def getPermissions(self) -> set[str]:

@@ -18,10 +18,10 @@ def strip_overlaps(paths: list[np.ndarray], widths: np.ndarray, src: np.ndarray,
                    ) -> tuple[np.ndarray, np.ndarray]:
     """(start, end) [m] along path ``src[k]`` of where its strip overlaps the strip of path ``dst[k]`` (NaN where
     they do not): ``paths`` are centre lines (points [m], at least two each), ``widths`` [m] their strips'."""
-    shapes = LaneShapes.from_polylines(paths)
     start, end = np.full(len(src), np.nan), np.full(len(src), np.nan)
-    if not len(src):
+    if not len(src):  # also a network without junction links (no paths)
         return start, end
+    shapes = LaneShapes.from_polylines(paths)
     # The samples of every path that is a source: s along it, the point there and the path's heading.
     sources = np.unique(src)
     samples = [np.arange(0.0, float(shapes.cumulative[k, -1]) + 1e-9, SAMPLE_SPACING_M) for k in sources.tolist()]
