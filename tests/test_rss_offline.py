@@ -216,7 +216,7 @@ def _fcd_vehicle(vid: str, at: float, **changed: str | None) -> str:
     ({"speed": "-5"}, "vehicle 'a': speed: expected a number >= 0 (m/s) and at most 200 m/s, got -5"),
     ({"pos": "abc10"}, "vehicle 'a': pos: expected a finite number, got 'abc10'"),
     ({"acceleration": "x0"}, "vehicle 'a': acceleration: expected a finite number, got 'x0'"),
-    ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer (64-bit), got '0.0'"),
+    ({"signals": "0.0"}, "vehicle 'a': signals: expected an integer in [0, 2147483647] (SUMO's signal bits), got '0.0'"),
     ({"id": "b"}, "vehicle 'b' is listed more than once"),
     ({"lane": None}, "vehicle 'a' lacks the attribute 'lane' (needed: id, x, y, angle, speed, lane; SUMO writes them "
                      "by default, and with --fcd-output.attributes they must be listed)"),
