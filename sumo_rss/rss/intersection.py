@@ -93,8 +93,10 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     """Evaluate the three conditions. Speeds ≥ 0 [m/s]; distances and lengths [m]; ``priority`` PRIORITY_*.
     ``crossing``: the two paths cross in the area (False: ad_rss's virtual line throughout). There the car in front
     is an obstacle across the other's path, not a leader along it: the one behind it on the virtual line is at a
-    safe distance only if it can stop before the area (its d_enter against a standing front car); the virtual line
-    measured a left-turner standing 7.4 m into the area as 7.4 m further ahead of the oncoming car than it was."""
+    safe distance only if it can stop both behind the front car on the line and before the area, against a
+    standing front car (the virtual line alone measured a left-turner standing 7.4 m into the area as 7.4 m further
+    ahead of the oncoming car than it was; the area alone would let a car with priority that could stop before it
+    be the one 'behind' a car running its yield, which is not in front of it)."""
     enter_a, enter_b = np.asarray(enter_a, dtype=float), np.asarray(enter_b, dtype=float)
     priority = np.asarray(priority)
     # 1. Able to stop before the area (a car inside can not).
@@ -105,8 +107,9 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     a_front = enter_b > enter_a + np.asarray(length_a)
     b_front = enter_a > enter_b + np.asarray(length_b)
     crossing = np.asarray(crossing, dtype=bool)
-    gap = np.where(crossing, np.maximum(np.where(a_front, enter_b, enter_a), 0.0),
-                   np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b))
+    gap = np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b)  # along the virtual line
+    # Where the paths cross, also short of the area: the front car may stand in it across the rear car's path.
+    gap = np.where(crossing, np.minimum(gap, np.maximum(np.where(a_front, enter_b, enter_a), 0.0)), gap)
     v_a_lead, v_b_lead = (np.where(crossing, 0.0, v) for v in (v_a, v_b))
     d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a_lead, p_b, p_a),
                      lon_safe_distance_same_dir(v_a, v_b_lead, p_a, p_b))
