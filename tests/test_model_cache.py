@@ -24,6 +24,8 @@ TLS = NETWORKS / "intersection_tls" / "intersection_tls.net.xml"
 def cache(tmp_path, monkeypatch):
     folder = tmp_path / "cache"
     monkeypatch.setenv(model_cache.CACHE_ENV, str(folder))
+    # The models this process keeps (an earlier test on this worker may have read the same net's signals).
+    monkeypatch.setattr(model_cache, "_kept", {})
     return folder
 
 

@@ -28,8 +28,8 @@ def _run(spec, seconds: float) -> tuple[Session, list]:
 
 
 def test_every_shipped_scenario_is_tested():
-    assert SHIPPED_SCENARIOS == ["highway_dense", "highway_sparse", "intersection_priority", "intersection_tls",
-                                 "merge_onramp"]
+    assert SHIPPED_SCENARIOS == ["highway_dense", "highway_exit", "highway_overtake", "highway_sparse",
+                                 "intersection_priority", "intersection_tls", "merge_onramp"]
 
 
 @pytest.mark.parametrize("name", SHIPPED_SCENARIOS)
@@ -39,8 +39,11 @@ def test_scenario_runs_60_s_with_traffic_flowing(name):
     assert session.steps == 600 and snaps[0].time == 0.0 and snaps[-1].time == pytest.approx(59.9)
     # Evenly spaced flows give their count within SUMO's insertion delays; random ones (a probability per second)
     # a binomial count, allowed three standard deviations below its mean.
-    even = sum(f.veh_per_hour for f in spec.demand.flows if f.veh_per_hour) * 60.0 / 3600.0
-    arrivals = sum(f.probability for f in spec.demand.flows if f.probability) * 60.0  # expected random arrivals
+    def active_s(flow) -> float:  # [s] of the first 60 s in which the flow inserts
+        return max(0.0, min(60.0, flow.end_s if flow.end_s is not None else 60.0) - flow.begin_s)
+
+    even = sum(f.veh_per_hour * active_s(f) for f in spec.demand.flows if f.veh_per_hour) / 3600.0
+    arrivals = sum(f.probability * active_s(f) for f in spec.demand.flows if f.probability)  # expected random ones
     expected = 0.8 * even + arrivals - 3.0 * np.sqrt(arrivals)
     background = session.vehicles_inserted - 1  # the ego departs within the first 30 s
     assert background >= expected, (background, expected)
