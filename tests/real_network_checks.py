@@ -52,7 +52,9 @@ class FcdTable:
 
 def opposite_pairs_beyond_a_lane(result: AuditResult, fcd: FcdTable, net: RoadNetwork) -> list[str]:
     """Opposite-direction episodes at whose t_b the other car's front bumper lies more than one lane width (plus the
-    two lanes' half widths, + 0.5 m) from the first car's lane centre line: two streets, not one road."""
+    two lanes' half widths, + 0.5 m) across the first car's lane from the first car's own front bumper: two streets,
+    not one road (measured from the car, not its lane's centre line: a car changing lanes towards the oncoming ones
+    is already off it; MoST 115|136 at 116.8 s, 1.49 m)."""
     bad = []
     for e in result.episodes[result.episodes.situation == "opposite-direction"].itertuples():
         steps = fcd.pair(e.vehicle_a, e.vehicle_b, e.t_b_s, e.t_b_s)
@@ -60,9 +62,9 @@ def opposite_pairs_beyond_a_lane(result: AuditResult, fcd: FcdTable, net: RoadNe
             continue
         step = steps.iloc[0]
         lanes = net.lane_indices([step.lane_a, step.lane_b])
-        _, d, _ = net.frenet(lanes[:1], np.array([step.x_b]), np.array([step.y_b]))
+        _, d, _ = net.frenet(lanes[[0, 0]], np.array([step.x_a, step.x_b]), np.array([step.y_a, step.y_b]))
         widths = net.lane_width[lanes]
-        if abs(d[0]) > 0.5 * widths.sum() + widths.max() + 0.5:
+        if abs(d[1] - d[0]) > 0.5 * widths.sum() + widths.max() + 0.5:
             bad.append(e.episode_key)
     return bad
 
