@@ -133,8 +133,8 @@ def main() -> None:
         if reason is None:
             with headless_chromium() as browser:
                 page = figures["browser_all"] = measure_page(browser, folder / "all" / "view.html")
-            figures["targets"].update(load_under_3_s=page["load_s"] < 3.0,
-                                      plays_at_30_fps=min(page["follow_ego"]["fps"], page["whole_network"]["fps"]) >= 30.0)
+            slowest = min(page["follow_ego"]["fps"], page["whole_network"]["fps"])
+            figures["targets"].update(load_under_3_s=page["load_s"] < 3.0, plays_at_30_fps=slowest >= 30.0)
         else:
             figures["browser_all"] = f"not measured: {reason}"
     record("viewer", figures, options)
