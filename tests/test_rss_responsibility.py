@@ -16,13 +16,16 @@ PAIR = np.int64(1)  # uids 0 ('a') and 1 ('b'): (0 << 32) | 1
 DT = 0.1
 
 
-def _pair(lon_safe: bool, lat_safe: bool, v_lat_a: float = 0.0) -> PairSituations:
-    """Car a 10 m/s behind car b on a road (a on the right); d_min and gaps only matter for the margins."""
+def _pair(lon_safe: bool, lat_safe: bool, v_lat_a: float = 0.0, a_left: bool = False,
+          lat_offset: float = 2.3) -> PairSituations:
+    """Car a 10 m/s behind car b on a road (a on the right unless ``a_left``, centres ``lat_offset`` m apart
+    across it); d_min and gaps only matter for the margins."""
     one = np.ones(1)
     return PairSituations(a=np.array([0]), b=np.array([1]), kind=np.zeros(1, dtype=int), a_is_rear=np.ones(1, bool),
-                          a_is_left=np.zeros(1, bool), lon_gap=5.0 * one, lat_gap=0.5 * one, v_lon_a=10.0 * one,
+                          a_is_left=np.array([a_left]), lon_gap=5.0 * one, lat_gap=0.5 * one, v_lon_a=10.0 * one,
                           v_lon_b=10.0 * one, v_lat_a=v_lat_a * one, v_lat_b=0.0 * one, lon_d_min=10.0 * one,
-                          lat_d_min=one, lon_safe=np.array([lon_safe]), lat_safe=np.array([lat_safe]))
+                          lat_d_min=one, lon_safe=np.array([lon_safe]), lat_safe=np.array([lat_safe]),
+                          lat_offset=lat_offset * one)
 
 
 def _step(tracker: ResponsibilityTracker, t: float, situations: PairSituations, accel=(0.0, 0.0),
@@ -115,6 +118,41 @@ def test_a_lateral_response_that_has_come_to_rest_must_stay_at_rest():
     (violation,) = tracker.violations().to_dict("records")
     assert (violation["constraint"], violation["bound"], violation["worst_actual"]) == \
         ("lat-speed-envelope", 0.0, pytest.approx(0.3))
+
+
+def test_a_car_in_line_with_the_one_that_cut_in_may_move_out_to_either_side():
+    """Car b cut in (lateral safe before t_b = 0.1 s) and from 0.5 s drives straight ahead of a in a's lane
+    (centres 0.0 m apart, within μ/2): no side of a is towards b. From 1.5 s a moves left at 0.5 m/s to pass b
+    (+ = left); from 1.7 s its centre is 0.3 m left of b's (beyond μ/2 = 0.05 m), so b is on its right and moving
+    left is moving away: a owes nothing and is not responsible. The lateral duty keeps the side the cars are on
+    now (highway_sparse seed 0: the EPSILON ego was held behind a car that cut in ahead of it for 37 s)."""
+    tracker = ResponsibilityTracker()
+    _step(tracker, 0.0, _pair(False, True))
+    for k in range(1, 15):
+        _step(tracker, round(k * DT, 10), _pair(False, False, lat_offset=1.0 if k < 5 else 0.0))
+    for k in range(15, 25):
+        offset = 0.5 * (k - 14) * DT
+        _step(tracker, round(k * DT, 10), _pair(False, False, v_lat_a=0.5, a_left=offset > 0.0, lat_offset=offset))
+    tracker.finish()
+    (episode,) = tracker.episodes().to_dict("records")
+    assert episode["owed_a"] == "lat:brake" and episode["responsible"] == "none"
+    assert tracker.violations().empty
+
+
+def test_a_car_beside_the_one_that_cut_in_may_not_move_towards_it():
+    """The same move left by a while b is still 1.0 m to its left, beside it (not in line): towards b after its
+    lateral speed had come to rest, a violation by 0.5 m/s."""
+    tracker = ResponsibilityTracker()
+    _step(tracker, 0.0, _pair(False, True))
+    for k in range(1, 15):
+        _step(tracker, round(k * DT, 10), _pair(False, False, lat_offset=1.0))
+    for k in range(15, 25):
+        _step(tracker, round(k * DT, 10), _pair(False, False, v_lat_a=0.5, lat_offset=1.0 - 0.05 * (k - 14)))
+    tracker.finish()
+    (episode,) = tracker.episodes().to_dict("records")
+    assert episode["responsible"] == "a"
+    (violation,) = tracker.violations().to_dict("records")
+    assert (violation["constraint"], violation["worst_actual"]) == ("lat-speed-envelope", pytest.approx(0.5))
 
 
 def test_the_lateral_tolerance_stops_growing_once_the_envelope_has_reached_zero():

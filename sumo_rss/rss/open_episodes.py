@@ -44,7 +44,8 @@ class OpenEpisodes:
     roles: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
     owed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=object))
     area: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=object))
-    a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    a_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # a is left of b (last seen apart)
+    in_line: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # centres within μ/2 across
     u0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # lateral speed towards the other at t_b
     lat_settled: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))  # ≤ 0 after ρ once
     min_lon_margin: np.ndarray = field(default_factory=lambda: np.zeros(0))

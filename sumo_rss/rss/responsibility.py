@@ -72,8 +72,8 @@ class OwedResponses:
     must_brake: np.ndarray  # bool: longitudinal braking owed after ρ
     brake_correct: np.ndarray  # bool: the braking owed is b_corr (opposite direction, correct lane)
     front_limited: np.ndarray  # bool: must not brake harder than b_max
-    owed_lat: np.ndarray  # bool: lateral response owed
-    other_is_left: np.ndarray  # bool: the other car is on this car's left
+    owed_lat: np.ndarray  # bool: lateral response owed (not while the cars are in line: neither side is towards)
+    other_is_left: np.ndarray  # bool: the other car is on this car's left (as they are now)
     u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
     other_id: np.ndarray  # the other car's id
     same_direction: np.ndarray  # bool: one car follows the other (same direction or merge)
@@ -193,7 +193,7 @@ class ResponsibilityTracker:
         car = np.where(as_a[idx], 0, 1)
         return OwedResponses(
             t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx, car],
-            front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx],
+            front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx] & ~e.in_line[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
             same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car])
@@ -283,7 +283,8 @@ class ResponsibilityTracker:
             must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
             owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
             area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
-            a_left=sit.a_is_left[rows], u0=u0, lat_settled=np.zeros((n, 2), dtype=bool),
+            a_left=sit.a_is_left[rows], in_line=np.zeros(n, dtype=bool), u0=u0,
+            lat_settled=np.zeros((n, 2), dtype=bool),
             min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
             min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
             responsible=np.zeros((n, 2), dtype=bool), **_area_progress(
@@ -349,14 +350,16 @@ class ResponsibilityTracker:
         actual[..., 1], bound[..., 1] = accel, before * p.lon_accel_max[cars] - (1.0 - before) * brake_needed
         applies[..., 2] = front
         actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
+        self._update_lateral_order(sit, rows, candidate, p.lat_fluctuation_margin[cars])
         left = np.column_stack([e.a_left, ~e.a_left])
         u = np.where(left, -v_lat, v_lat)
-        applies[..., 3] = e.owed_lat[:, None] & pair
+        beside = pair & ~e.in_line[:, None]
+        applies[..., 3] = e.owed_lat[:, None] & beside
         actual[..., 3] = u
         # Once a car's speed towards the other is ≤ 0 from ρ on, it must stay there.
         bound[..., 3] = np.where(e.lat_settled, 0.0,
                                  lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars]))
-        e.lat_settled = e.lat_settled | (judged[:, None] & (tau >= rho - TIME_EPS) & (u <= 0.0))
+        e.lat_settled = e.lat_settled | (judged[:, None] & beside & (tau >= rho - TIME_EPS) & (u <= 0.0))
         tolerance = np.full(actual.shape, step.accel_tolerance)
         # The velocity envelope's tolerance: the acceleration tolerance integrated while the envelope changes,
         # up to when it reaches 0; from then on "stay ≤ 0" does not loosen with time.
@@ -370,6 +373,21 @@ class ResponsibilityTracker:
         shown = np.where(applies & judged[:, None, None], bound, np.nan)
         self.judged = JudgedStep(e.serial, accel, np.fmin(shown[..., 0], shown[..., 1]), shown[..., 2],
                                  np.where(pair, u, np.nan), shown[..., 3])
+
+    def _update_lateral_order(self, sit: PairSituations, rows: np.ndarray, candidate: np.ndarray,
+                              mu: np.ndarray) -> None:
+        """Which car is left of the other, as they are now (the side a lateral response keeps away from), and
+        whether they are in line: centres within μ/2 across the road (the larger μ [m] of the two, ``mu`` [n, 2]),
+        where neither side is towards the other (a car that cut in and now drives straight ahead in the other's
+        lane). Kept from the last step seen where the pair is no road situation now."""
+        e = self._open
+        if not len(sit) or sit.lat_offset is None:
+            return
+        offset = np.where(candidate, sit.lat_offset[rows], np.nan)
+        in_line = offset <= 0.5 * mu.max(axis=1)  # NaN (junctions, not a candidate): False
+        seen = candidate & np.isfinite(offset)
+        e.in_line = np.where(seen, in_line, e.in_line)
+        e.a_left = np.where(seen & ~in_line, sit.a_is_left[rows], e.a_left)
 
     def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
                          t: float, grace: np.ndarray) -> None:

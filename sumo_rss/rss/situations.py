@@ -119,6 +119,8 @@ class PairSituations:
     # Intersections: each car's d_enter [m] (front bumper to the conflict area, negative inside); NaN on roads.
     enter_a: np.ndarray | None = None
     enter_b: np.ndarray | None = None
+    # Roads: how far apart the two cars' centres are across the reference lane [m] (NaN at junctions).
+    lat_offset: np.ndarray | None = None
 
     @property
     def safe_rules(self) -> np.ndarray:
@@ -156,7 +158,8 @@ class PairSituations:
                               in_front=column("in_front", 0, np.int8), area=column("area", "", object),
                               wrong_way_a=column("wrong_way_a", False, bool),
                               wrong_way_b=column("wrong_way_b", False, bool),
-                              enter_a=column("enter_a", np.nan, float), enter_b=column("enter_b", np.nan, float))
+                              enter_a=column("enter_a", np.nan, float), enter_b=column("enter_b", np.nan, float),
+                              lat_offset=column("lat_offset", np.nan, float))
 
 
 @jitable
@@ -500,7 +503,7 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
         a=np.where(a_is_ref, ref, other), b=np.where(a_is_ref, other, ref), kind=kind,
         a_is_rear=np.where(same, ~a_is_ref, a_is_ref),  # opposite pairs: "a is the reference car"
         a_is_left=np.where(a_is_ref, ~other_left, other_left), lon_gap=lon_gap, lat_gap=lat_gap,
-        v_lon_a=np.where(a_is_ref, v_ref_lon, v_other_lon), v_lon_b=np.where(a_is_ref, v_other_lon, v_ref_lon),
+        lat_offset=np.abs(d_o - frame.d[ref]), v_lon_a=np.where(a_is_ref, v_ref_lon, v_other_lon), v_lon_b=np.where(a_is_ref, v_other_lon, v_ref_lon),
         v_lat_a=np.where(a_is_ref, v_lat_r, v_lat_o), v_lat_b=np.where(a_is_ref, v_lat_o, v_lat_r),
         lon_d_min=lon_d_min, lat_d_min=lat_d_min,
         lon_safe=is_safe_distance(lon_gap, lon_d_min), lat_safe=is_safe_distance(lat_gap, lat_d_min),

@@ -1,0 +1,1 @@
+pstats.Stats(prof).sort_stats("tottime").print_stats(15)
