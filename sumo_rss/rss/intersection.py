@@ -249,6 +249,8 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     enter_a, exit_a = table.start[ka] - pos[ea], table.end[ka] - pos[ea] + length[ra]
     enter_b, exit_b = table.start[kb] - pos[eb], table.end[kb] - pos[eb] + length[rb]
     keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
+    if not keep.any():  # most steps of a city: nothing to evaluate, which costs numpy's per-call overhead alone
+        return _no_situations()
     ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b = (
         x[keep] for x in (ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b))
     area = table.area[ka]
@@ -275,6 +277,16 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
         lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
         in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
         area=table.area_id[ka], enter_a=enter_a, enter_b=enter_b)
+
+
+def _no_situations() -> PairSituations:
+    """No junction situation (the arrays' types as :func:`intersection_situations` gives them)."""
+    none, flags, codes = np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int8)
+    rows = np.zeros(0, dtype=int)
+    return PairSituations(a=rows, b=rows, kind=rows, a_is_rear=flags, a_is_left=flags, lon_gap=none, lat_gap=none,
+                          v_lon_a=none, v_lon_b=none, v_lat_a=none, v_lat_b=none, lon_d_min=none, lat_d_min=none,
+                          lon_safe=flags, lat_safe=flags, rules=codes, priority=codes, in_front=codes,
+                          area=np.zeros(0, dtype=object), enter_a=none, enter_b=none)
 
 
 def conflicting_entries(links: np.ndarray, pairs: LinkPairList) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
