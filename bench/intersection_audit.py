@@ -42,8 +42,8 @@ def main() -> None:
     figures = {"sim_s": spec.duration_s, "sim_only_rtf": spec.duration_s / sim_wall,
                "audit_only_rtf": spec.duration_s / audit_wall, "sim_plus_audit_rtf": spec.duration_s / (sim_wall + audit_wall),
                "audit_ms_per_step": 1000 * audit_wall / len(snapshots), "pair_steps": auditor.pair_steps,
-               "pair_steps_per_s": auditor.pair_steps / audit_wall, "junction_pair_steps": junction_pair_steps, "episodes": len(result.episodes),
-               "junction_episodes": int(junction)}
+               "pair_steps_per_s": auditor.pair_steps / audit_wall, "junction_pair_steps": junction_pair_steps,
+               "episodes": len(result.episodes), "junction_episodes": int(junction)}
     record("intersection_audit", figures, options)
     print(f"intersection_tls: audit {figures['audit_only_rtf']:.0f}x real time alone, sim+audit "
           f"{figures['sim_plus_audit_rtf']:.0f}x, {figures['pair_steps_per_s'] / 1e6:.2f} M pair-steps/s, "

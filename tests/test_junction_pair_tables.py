@@ -1,6 +1,7 @@
 """The per-network tables the junction situations gather from each step, on eclipse-sumo's DRT city (3,703
-junction links, 5,459 conflict areas, 21 signals): the list of conflicting link pairs against the dense link-pair tables, the
-entry pairs found through it against every pair of entries, and the signal ranks against each link's own state."""
+junction links, 5,459 conflict areas, 21 signals): the list of conflicting link pairs against the conflict areas,
+the entry pairs found through it against every pair of entries, and the signal ranks against each link's own
+state."""
 from __future__ import annotations
 
 import numpy as np

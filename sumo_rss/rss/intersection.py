@@ -105,7 +105,8 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     # 1. Able to stop before the area (a car inside can not).
     need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
     need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
-    stop_a, stop_b = is_safe_distance(np.maximum(enter_a, 0.0), need_a), is_safe_distance(np.maximum(enter_b, 0.0), need_b)
+    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), need_a)
+    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), need_b)
     able = np.where(priority == PRIORITY_A, stop_b, np.where(priority == PRIORITY_B, stop_a, stop_a & stop_b))
     # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
     a_front = enter_b > enter_a + np.asarray(length_a)
