@@ -9,17 +9,21 @@ yields to link j when bit j of its response is set); at signals the current link
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from .link_pairs import LinkBlocks, LinkPairs
+from .link_pairs import LinkBlocks, LinkPairList, LinkPairs
 from .model_cache import cached
 from .net_file import read_net
 from .network import RoadNetwork
 from .strip_overlap import strip_overlaps
 
 SIGNAL_RANK = {"G": 2, "g": 1}  # every other state ('y', 'r', 'u', 'o', 's', ...) ranks 0
+_RANK_OF_BYTE = np.zeros(256, dtype=int)  # SIGNAL_RANK by the state character's (ASCII) byte
+for _state, _rank in SIGNAL_RANK.items():
+    _RANK_OF_BYTE[ord(_state)] = _rank
 
 
 @dataclass(frozen=True)
@@ -50,6 +54,19 @@ class ConflictArea:
     b_end: float
     kind: str  # 'merging' (both links lead into the same lane), 'diverging' (both come from the same lane) or 'crossing'
     static_priority: str  # 'a', 'b' or 'same', from SUMO's junction logic
+
+
+@dataclass(frozen=True, eq=False)
+class ConflictPairs:
+    """Every ordered pair of links (a, b) that share a conflict area, as arrays over the pair numbers of ``pairs``
+    (the per-pair values of JunctionModel's link-pair tables, gathered once)."""
+
+    pairs: LinkPairList
+    area: np.ndarray  # [K] the conflict area (index into JunctionModel.conflicts)
+    start: np.ndarray  # [K] its start along a's path [m]
+    end: np.ndarray  # [K] its end along a's path [m]
+    static_priority: np.ndarray  # [K] +1: a has priority, -1: a yields, 0: same
+    area_id: np.ndarray  # [K] the conflict area's id (object)
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,14 +163,33 @@ class JunctionModel:
                    np.array([link.length for link in links], dtype=float),
                    np.array([c.kind == "crossing" for c in conflicts], dtype=bool))
 
+    @cached_property
+    def conflict_pairs(self) -> ConflictPairs:
+        """The link pairs that share a conflict area and their areas' tables (built on first use)."""
+        pairs = self.area_index.pairs()
+        area = self.area_index.values[pairs.flat]
+        return ConflictPairs(pairs, area, self.area_start.values[pairs.flat],
+                             self.area_end.values[pairs.flat], self.static_priority.values[pairs.flat],
+                             np.array([c.id for c in self.conflicts], dtype=object)[area])
+
+    @cached_property
+    def _signals(self) -> tuple[list[str], np.ndarray]:
+        """(the signals with links, sorted; each link's number among them, -1 if unsignalised)."""
+        tls = self.link_tls.astype(str)
+        names = np.unique(tls[tls != ""])
+        return names.tolist(), np.where(tls != "", np.searchsorted(names, tls), -1)
+
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
         ranks = np.full(len(self.links), -1, dtype=int)
         if tls_states:
-            for k, link in enumerate(self.links):
-                state = tls_states.get(link.tls)
-                if state is not None and 0 <= link.tls_index < len(state):
-                    ranks[k] = SIGNAL_RANK.get(state[link.tls_index], 0)
+            names, number = self._signals
+            states = [tls_states.get(name, "") for name in names]  # unknown: as long as no index
+            length = np.array([len(state) for state in states], dtype=int)
+            chars = np.frombuffer("".join(states).encode("ascii", "replace"), dtype=np.uint8)
+            k = np.flatnonzero(number >= 0)
+            k = k[(self.link_tls_index[k] >= 0) & (self.link_tls_index[k] < length[number[k]])]
+            ranks[k] = _RANK_OF_BYTE[chars[(np.cumsum(length) - length)[number[k]] + self.link_tls_index[k]]]
         return ranks
 
 

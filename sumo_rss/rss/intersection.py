@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..road.junctions import JunctionModel
+from ..road.link_pairs import LinkPairList, expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir
@@ -81,6 +82,8 @@ class IntersectionSafety:
     no_time_overlap: np.ndarray
     a_in_front: np.ndarray  # a's rear bumper is ahead of b's front bumper on the virtual line
     b_in_front: np.ndarray
+    need_a: np.ndarray  # [m] what a needs to stop before the area: D(v) + λ
+    need_b: np.ndarray
 
     @property
     def safe(self) -> np.ndarray:
@@ -100,8 +103,10 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     enter_a, enter_b = np.asarray(enter_a, dtype=float), np.asarray(enter_b, dtype=float)
     priority = np.asarray(priority)
     # 1. Able to stop before the area (a car inside can not).
-    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap)
-    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap)
+    need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
+    need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
+    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), need_a)
+    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), need_b)
     able = np.where(priority == PRIORITY_A, stop_b, np.where(priority == PRIORITY_B, stop_a, stop_a & stop_b))
     # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
     a_front = enter_b > enter_a + np.asarray(length_a)
@@ -114,18 +119,28 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a_lead, p_b, p_a),
                      lon_safe_distance_same_dir(v_a, v_b_lead, p_a, p_b))
     in_front = (a_front | b_front) & is_safe_distance(gap, d_min)
-    # 3. No time overlap: earliest arrival of one after the latest exit of the other.
-    arrive_a = time_to_cover(v_a, np.maximum(enter_a, 0.0), p_a.response_time, p_a.lon_accel_max,
-                             -np.asarray(p_a.lon_brake_min), p_a.max_speed_on_accel)
-    arrive_b = time_to_cover(v_b, np.maximum(enter_b, 0.0), p_b.response_time, p_b.lon_accel_max,
-                             -np.asarray(p_b.lon_brake_min), p_b.max_speed_on_accel)
-    leave_a = time_to_cover(v_a, exit_a, p_a.response_time, -np.asarray(p_a.lon_brake_max),
-                            -np.asarray(p_a.lon_brake_max), p_a.max_speed_on_accel)
-    leave_b = time_to_cover(v_b, exit_b, p_b.response_time, -np.asarray(p_b.lon_brake_max),
-                            -np.asarray(p_b.lon_brake_max), p_b.max_speed_on_accel)
+    # 3. No time overlap: earliest arrival of one after the latest exit of the other (the four times in one call).
+    arrive_a, arrive_b, leave_a, leave_b = time_to_cover(*_side_by_side(
+        (v_a, v_b, v_a, v_b), (np.maximum(enter_a, 0.0), np.maximum(enter_b, 0.0), exit_a, exit_b),
+        (p_a.response_time, p_b.response_time, p_a.response_time, p_b.response_time),
+        (p_a.lon_accel_max, p_b.lon_accel_max, -np.asarray(p_a.lon_brake_max), -np.asarray(p_b.lon_brake_max)),
+        (-np.asarray(p_a.lon_brake_min), -np.asarray(p_b.lon_brake_min), -np.asarray(p_a.lon_brake_max),
+         -np.asarray(p_b.lon_brake_max)),
+        (p_a.max_speed_on_accel, p_b.max_speed_on_accel, p_a.max_speed_on_accel, p_b.max_speed_on_accel)))
     no_overlap = (arrive_a > leave_b + TIME_PRECISION) | (arrive_b > leave_a + TIME_PRECISION) | \
         (np.isinf(arrive_a) & np.isinf(arrive_b))
-    return IntersectionSafety(able, in_front, no_overlap, a_front, b_front)
+    return IntersectionSafety(able, in_front, no_overlap, a_front, b_front, need_a, need_b)
+
+
+def _side_by_side(*groups: tuple[Any, ...]) -> list[np.ndarray]:
+    """Each group of four values broadcast to the shape of all of them and laid side by side along a new first
+    axis ([4, ...]): one call of an element-wise function then evaluates all four (numpy's cost per call, not per
+    element, is what a step of a few dozen pairs pays)."""
+    shapes = {np.shape(x) for group in groups for x in group}
+    shape = shapes.pop() if len(shapes) == 1 else np.broadcast_shapes(*shapes)
+    return [np.concatenate([np.asarray(x, dtype=float).reshape(-1) if np.shape(x) == shape else
+                            np.broadcast_to(np.asarray(x, dtype=float), shape).reshape(-1) for x in group]
+                           ).reshape((4,) + shape) for group in groups]
 
 
 def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
@@ -146,16 +161,18 @@ def area_distances(junctions: JunctionModel, link: Any, foe: Any, pos: Any, leng
     return junctions.area_start[link, foe] - pos, junctions.area_end[link, foe] - pos + length
 
 
-def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any) -> tuple[np.ndarray, np.ndarray]:
+def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any, static: Any = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """(PRIORITY_* of link ``la`` against link ``lb``, whether the signals decided it), given the links' signal
     ``ranks`` (:meth:`JunctionModel.signal_ranks`). The signals decide where both links are signalised and their
-    ranks differ, else the junction; a signalised link whose state is unknown (offline, actuated program) gives
-    no priority either way."""
+    ranks differ, else the junction (its ``static`` priority of la against lb where known, as
+    ``JunctionModel.static_priority`` gives it); a signalised link whose state is unknown (offline, actuated program)
+    gives no priority either way."""
     rank_a, rank_b = ranks[la], ranks[lb]
     by_signal = (rank_a >= 0) & (rank_b >= 0) & (rank_a != rank_b)
     unknown = ((junctions.link_tls_index[la] >= 0) & (rank_a < 0)) | \
         ((junctions.link_tls_index[lb] >= 0) & (rank_b < 0))
-    static = np.where(unknown, 0, junctions.static_priority[la, lb])
+    static = np.where(unknown, 0, junctions.static_priority[la, lb] if static is None else static)
     priority = np.where(by_signal, np.where(rank_a > rank_b, PRIORITY_A, PRIORITY_B),
                         np.where(static > 0, PRIORITY_A, np.where(static < 0, PRIORITY_B, PRIORITY_SAME)))
     return priority, by_signal
@@ -219,32 +236,38 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     unknown), or already on the link's internal lanes."""
     rows, links, pos = entries_beyond(*junction_entries(frame.lane, frame.lane_pos, next_route_edge(
         frame.route_edges, frame.edge), network, junctions, horizon), frame.route_edges, network, junctions, horizon)
-    i, j = np.triu_indices(len(rows), 1)
-    share = (junctions.area_index[links[i], links[j]] >= 0) & (rows[i] != rows[j])
-    i, j = i[share], j[share]
-    # Name each situation by id order: a < b.
+    table = junctions.conflict_pairs
+    i, j, k = conflicting_entries(links, table.pairs)
+    share = rows[i] != rows[j]
+    i, j, k = i[share], j[share], k[share]
+    # Name each situation by id order: a < b; ka / kb: the link pairs (a's link, b's) and (b's, a's).
     swap = snapshot.ids[rows[i]] > snapshot.ids[rows[j]]
     ea, eb = np.where(swap, j, i), np.where(swap, i, j)
+    ka = np.where(swap, table.pairs.reverse[k], k)
+    kb = table.pairs.reverse[ka]
     ra, rb, la, lb = rows[ea], rows[eb], links[ea], links[eb]
     length = snapshot.length
-    enter_a, exit_a = area_distances(junctions, la, lb, pos[ea], length[ra])
-    enter_b, exit_b = area_distances(junctions, lb, la, pos[eb], length[rb])
+    enter_a, exit_a = table.start[ka] - pos[ea], table.end[ka] - pos[ea] + length[ra]
+    enter_b, exit_b = table.start[kb] - pos[eb], table.end[kb] - pos[eb] + length[rb]
     keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
-    ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b = (
-        x[keep] for x in (ra, rb, la, lb, enter_a, enter_b, exit_a, exit_b))
-    priority, by_signal = link_priority(junctions, junctions.signal_ranks(snapshot.tls_states), la, lb)
+    if not keep.any():  # most steps of a city: nothing to evaluate, which costs numpy's per-call overhead alone
+        return _no_situations()
+    ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b = (
+        x[keep] for x in (ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b))
+    area = table.area[ka]
+    priority, by_signal = link_priority(junctions, junctions.signal_ranks(snapshot.tls_states), la, lb,
+                                        table.static_priority[ka])
     kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
     v_a, v_b = np.maximum(frame.v_lon[ra], 0.0), np.maximum(frame.v_lon[rb], 0.0)
     p = frame.params
     p_a, p_b = p.take(ra), p.take(rb)
     safety = intersection_safety(v_a, enter_a, exit_a, length[ra], p_a, v_b, enter_b, exit_b, length[rb], p_b,
-                                 priority, junctions.area_crossing[junctions.area_index[la, lb]])
+                                 priority, junctions.area_crossing[area])
     rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
              safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
     # Margin of the yielding car (with equal priority, of the one deeper in trouble): distance to the area minus
     # what it needs to stop before it.
-    need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
-    need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
+    need_a, need_b = safety.need_a, safety.need_b
     a_yields = (priority == PRIORITY_B) | ((priority == PRIORITY_SAME) & (enter_a - need_a <= enter_b - need_b))
     n = len(ra)
     nan = np.full(n, np.nan)
@@ -254,5 +277,30 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
         v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, need_a, need_b), lat_d_min=nan,
         lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
         in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
-        area=np.array([junctions.conflicts[k].id for k in junctions.area_index[la, lb]], dtype=object),
-        enter_a=enter_a, enter_b=enter_b)
+        area=table.area_id[ka], enter_a=enter_a, enter_b=enter_b)
+
+
+def _no_situations() -> PairSituations:
+    """No junction situation (the arrays' types as :func:`intersection_situations` gives them)."""
+    none, flags, codes = np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int8)
+    rows = np.zeros(0, dtype=int)
+    return PairSituations(a=rows, b=rows, kind=rows, a_is_rear=flags, a_is_left=flags, lon_gap=none, lat_gap=none,
+                          v_lon_a=none, v_lon_b=none, v_lat_a=none, v_lat_b=none, lon_d_min=none, lat_d_min=none,
+                          lon_safe=flags, lat_safe=flags, rules=codes, priority=codes, in_front=codes,
+                          area=np.zeros(0, dtype=object), enter_a=none, enter_b=none)
+
+
+def conflicting_entries(links: np.ndarray, pairs: LinkPairList) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(i, j, k): every two entries i < j whose links share a conflict area, in (i, j) order, and the number of
+    their link pair (links[i], links[j]) in ``pairs``. Found through each entry's conflicting links and the entries
+    on those: the work and memory grow with the pairs that conflict, not with the square of the entries."""
+    owner, k = pairs.of(links)  # every conflicting link of every entry
+    by_link = np.argsort(links, kind="stable")
+    on_link = links[by_link]
+    foe = pairs.other[k]
+    hit, at = expand_ranges(np.searchsorted(on_link, foe, side="left"), np.searchsorted(on_link, foe, side="right"))
+    i, j, k = owner[hit], by_link[at], k[hit]
+    keep = i < j  # each pair is found from both entries
+    i, j, k = i[keep], j[keep], k[keep]
+    order = np.lexsort((j, i))
+    return i[order], j[order], k[order]
