@@ -147,7 +147,7 @@ class Auditor:
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
                  trace_class: str | None = None, signal_rule: bool = True, raw_episodes: bool = False,
-                 junction_brake_min: bool = False, record_states: bool = False):
+                 junction_brake_min: bool = False, record_states: bool = False, spool: Path | None = None):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
         avoidable yellow-light entries as violations (docs/rss.md). ``raw_episodes``: an episode that re-opens
@@ -155,14 +155,17 @@ class Auditor:
         ``junction_brake_min``: a car owing braking at a junction must brake at b_min after ρ until stopped
         however far before the conflict area it stops, as ad_rss reads the response (default: a car that never
         enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
-        the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer)."""
+        the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer); ``spool``: a folder they
+        go to as they come (:mod:`sumo_rss.spool`) instead of memory, which must stay until the result is
+        written."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self.record_states = record_states
-        self._states = EpisodeStateTrace(trace_class, record_states) if trace_class or record_states else None
+        self._states = EpisodeStateTrace(trace_class, record_states, spool=spool) \
+            if trace_class or record_states else None
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
