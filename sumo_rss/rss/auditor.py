@@ -183,7 +183,8 @@ class Auditor:
         params = self.params.hold(moving, snapshot)
         frame = vehicle_frame(snapshot, self.network, params, self._routes.remaining(snapshot), moving)
         road = evaluate(snapshot, frame, self.network)
-        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
+        ids = snapshot.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
+        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in ids], dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
                                            horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0) \
@@ -203,7 +204,7 @@ class Auditor:
             area_number = np.concatenate([np.full(len(road), -1), number[first]])
         else:
             situations, keys = road, road_keys
-        new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
+        new_vehicle = np.array([v not in self._prev_ids for v in ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
             vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed,
@@ -215,7 +216,7 @@ class Auditor:
         if self._signal_rule is not None:
             self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
-        self._prev_ids = set(snapshot.ids.tolist())
+        self._prev_ids = set(ids)
         self.pair_steps += len(situations)
         return situations
 
