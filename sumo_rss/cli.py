@@ -386,7 +386,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .batch.runner import param_resolver
-    from .files import check_output_folder
+    from .files import check_output_folder, scratch_folder
     from .rss.auditor import AUDIT_FILES, ParamResolver
     from .rss.fcd import AuditProgress, FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
@@ -424,26 +424,29 @@ def _cmd_audit(args: argparse.Namespace) -> int:
                      junction_brake_min=args.junction_brake_min)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
-    # Shown from 0.5 s on: not for a short audit, nor before an error in the file's first steps.
-    with tqdm(total=args.fcd.stat().st_size, unit="B", unit_scale=True, desc="audit", disable=args.quiet,
-              file=sys.stderr, delay=0.5) as bar:
-        begun, done = time.perf_counter(), [AuditProgress(0, 0.0, 0, 0)]
+    # What 'sumo-rss view' replays (every vehicle, every episode's steps) goes to disk as it is recorded, so that
+    # memory is bounded by the traffic at one time, not by the length of the run (docs/viewer.md).
+    with scratch_folder(args.out) as spool:
+        # Shown from 0.5 s on: not for a short audit, nor before an error in the file's first steps.
+        with tqdm(total=args.fcd.stat().st_size, unit="B", unit_scale=True, desc="audit", disable=args.quiet,
+                  file=sys.stderr, delay=0.5) as bar:
+            begun, done = time.perf_counter(), [AuditProgress(0, 0.0, 0, 0)]
 
-        def on_progress(progress: AuditProgress) -> None:
-            done[0] = progress
-            rate = progress.pair_steps / max(time.perf_counter() - begun, 1e-9)
-            bar.set_postfix_str(f"t={progress.time:.0f} s, {rate / 1e3:.0f}k pair-steps/s", refresh=False)
-            bar.update(progress.bytes_read - bar.n)
+            def on_progress(progress: AuditProgress) -> None:
+                done[0] = progress
+                rate = progress.pair_steps / max(time.perf_counter() - begun, 1e-9)
+                bar.set_postfix_str(f"t={progress.time:.0f} s, {rate / 1e3:.0f}k pair-steps/s", refresh=False)
+                bar.update(progress.bytes_read - bar.n)
 
-        stop = _StopRequest.on_signals("the audit")
-        recorder = TrajectoryRecorder(args.net)  # every vehicle: what 'sumo-rss view' replays, without the FCD
-        result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
-                           collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
-                           run_id=run_id, **rules, on_progress=on_progress, stop=stop, record_states=True,
-                           on_snapshot=recorder.add)
-        if not stop.requested:
-            bar.update(bar.total - bar.n)  # read to its end
-    result.to_csv(args.out, also={TRAJECTORY_FILE: recorder.write})
+            stop = _StopRequest.on_signals("the audit")
+            recorder = TrajectoryRecorder(args.net, spool=spool)  # every vehicle
+            result = audit_fcd(args.fcd, network, resolver, vehicles=vehicles,
+                               collisions=args.collisions, tls_states=args.tls_states, ego_ids=tuple(args.ego),
+                               run_id=run_id, **rules, on_progress=on_progress, stop=stop, record_states=True,
+                               spool=spool, on_snapshot=recorder.add)
+            if not stop.requested:
+                bar.update(bar.total - bar.n)  # read to its end
+        result.to_csv(args.out, also={TRAJECTORY_FILE: recorder.write})
     signals = "" if args.tls_states or not topology.signals else \
         f" (the states of the network's {len(topology.signals)} signals from its own programs: no --tls-states)"
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "

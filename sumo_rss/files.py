@@ -8,7 +8,10 @@ from __future__ import annotations
 import errno
 import io
 import json
+import math
 import os
+import shutil
+import tempfile
 import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -96,6 +99,26 @@ def atomic_path(path: Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+@contextmanager
+def scratch_folder(out: Path) -> Iterator[Path]:
+    """A hidden temporary folder inside the output folder ``out`` (made if missing) for what a long piece of work
+    spools to disk before its results are written (:mod:`sumo_rss.spool`); removed with its files when the block
+    ends, however it ends, and ``out`` too where it was made for the work and nothing was written into it."""
+    out = Path(out)
+    made = not out.exists()
+    make_folder(out)
+    try:
+        folder = Path(tempfile.mkdtemp(prefix=".spool-", dir=out))
+    except OSError as exc:
+        raise output_error(out / ".spool", exc) from None
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+        if made and not any(out.iterdir()):
+            out.rmdir()
+
+
 def write_file_set(writers: Mapping[Path, Callable[[Path], None]]) -> None:
     """Write several files as a set: each writer writes its file's temporary path; only when every one has
     succeeded are they renamed into place, so a failure (disk full, a folder in the way) leaves every file as it
@@ -171,17 +194,36 @@ def write_csv(frame: pd.DataFrame, path: Path) -> None:
         csv_writer(frame)(tmp)
 
 
-def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+def write_npz(path: Path, arrays: Mapping[str, object]) -> None:
     """``arrays`` as a compressed ``.npz`` (``numpy.load`` reads it), written atomically and byte for byte the same
-    for the same arrays: every member has a fixed time stamp (``numpy.savez`` stamps the current time). Arrays of
-    Python objects are refused (they would need pickle to read)."""
+    for the same arrays: every member has a fixed time stamp (``numpy.savez`` stamps the current time). A value is
+    an array, a function returning one (called when its member is written, so that only one is in memory at a
+    time) or a column spooled on disk (:class:`~sumo_rss.spool.SpooledColumn`: streamed a chunk at a time, the same
+    bytes as its array). Arrays of Python objects are refused (they would need pickle to read)."""
     with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name, value in arrays.items():
-            value = np.asarray(value)
+            member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            member.compress_type = zipfile.ZIP_DEFLATED
+            if hasattr(value, "chunks"):
+                _write_npy_chunks(archive, member, value)
+                continue
+            value = np.asarray(value() if callable(value) else value)
             if value.dtype.hasobject:
                 raise TypeError(f"{path.name}: {name}: expected an array of numbers or strings, got objects")
             buffer = io.BytesIO()
             np.lib.format.write_array(buffer, value, allow_pickle=False)
-            member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            member.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(member, buffer.getvalue())
+
+
+def _write_npy_chunks(archive: zipfile.ZipFile, member: zipfile.ZipInfo, column) -> None:
+    """A spooled column as the ``.npy`` member ``member``, chunk by chunk: the bytes ``numpy.lib.format.write_array``
+    writes for its array (the same header, then the rows in order)."""
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": np.lib.format.dtype_to_descr(column.dtype),
+                                                  "fortran_order": False, "shape": column.shape})
+    # As ZipFile.writestr does: the size known up front decides whether the member needs ZIP64 records.
+    member.file_size = header.tell() + column.dtype.itemsize * math.prod(column.shape)
+    with archive.open(member, "w") as target:
+        target.write(header.getvalue())
+        for chunk in column.chunks():
+            target.write(chunk.tobytes())

@@ -1,6 +1,6 @@
-"""The road model cache: a second load of a network comes from its entry and equals a fresh build; a changed
-network, a damaged entry and an entry of other code are rebuilt, never used; the cache can be moved or turned
-off."""
+"""The road model cache: a second load of a network (its models and topology index) comes from its entry and equals
+a fresh build; a changed network, a damaged entry and an entry of other code are rebuilt, never used; the cache can
+be moved or turned off."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
-from sumo_rss.road import model_cache
+from sumo_rss.road import model_cache, topology
 from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.network import RoadNetwork
+from sumo_rss.road.topology import read_topology
 from sumo_rss.rss import signals
 from sumo_rss.rss.signals import SignalStates
 
@@ -55,10 +56,14 @@ def test_a_second_load_comes_from_the_cache_and_equals_a_fresh_build(cache, net_
     first = RoadNetwork.from_file(net_copy)
     junctions = JunctionModel.from_file(net_copy, first)
     SignalStates(net_copy)
-    assert sorted(p.name.split("-")[0] for p in cache.iterdir()) == ["junctions", "network", "signals"]
+    index = read_topology(net_copy)
+    assert sorted(p.name.split("-")[0] for p in cache.iterdir()) == ["junctions", "network", "signals", "topology"]
     monkeypatch.setattr(RoadNetwork, "build", classmethod(_no_build))
     monkeypatch.setattr(JunctionModel, "build", classmethod(_no_build))
     monkeypatch.setattr(signals, "signal_programs", _no_build)
+    monkeypatch.setattr(topology, "_parse_topology", _no_build)
+    topology._read_topology.cache_clear()  # as in a new process
+    assert read_topology(net_copy) == index and index.signals and index.lane_links
     again = RoadNetwork.from_file(net_copy)
     assert again.path == net_copy and _same_network(again, fresh)
     assert JunctionModel.from_file(net_copy, again).conflicts == junctions.conflicts

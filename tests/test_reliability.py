@@ -22,7 +22,8 @@ from conftest import NETWORKS, REPO, run_cli, two_scenario_batch
 from sumo_rss.batch.executors import LocalExecutor
 from sumo_rss.batch.orchestrator import run_batch
 from sumo_rss.batch.spec import load_batch
-from sumo_rss.files import output_error
+from sumo_rss.errors import OutputError
+from sumo_rss.files import output_error, write_file_set
 from sumo_rss.report.summary import read_batch_csv
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
@@ -74,7 +75,8 @@ def test_an_audit_that_cannot_write_its_outputs_writes_none_and_names_the_file(t
     run = tmp_path / "run"
     assert run_cli("run", str(two_scenarios / "busy.toml"), "--fcd", "--out", str(run), "--quiet").returncode == 0
     folder = run / "busy" / "1"
-    # [bytes] the vType file SUMO is given (~1 kB) and collisions.csv fit, episodes.csv (written first) does not
+    # [bytes] the vType file SUMO is given (~1 kB) and collisions.csv fit, episodes.csv does not, nor the steps of the
+    # episodes spooled to disk while the audit runs (docs/viewer.md)
     limit = (folder / "episodes.csv").stat().st_size - 1
     assert limit > 1500 > (folder / "collisions.csv").stat().st_size
     out = tmp_path / "audit"
@@ -84,9 +86,22 @@ def test_an_audit_that_cannot_write_its_outputs_writes_none_and_names_the_file(t
                    "--out", str(out), "--quiet", preexec_fn=_file_size_limit(limit))
     assert proc.returncode == 2
     line = _one_error_line(proc.stderr)
-    assert "episodes.csv: cannot be written: the file grew beyond the file-size limit" in line
+    assert "episode_states.npz: cannot be written: the file grew beyond the file-size limit" in line
+    assert f"(its rows go to {out}/.spool-" in line
     assert sorted(p.name for p in out.iterdir()) == ["collisions.csv"]  # no new file, no temporary file
-    assert (out / "collisions.csv").read_text() == "an older audit's\n"  # the set is written whole or not at all
+    assert (out / "collisions.csv").read_text() == "an older audit's\n"
+
+
+def test_a_file_set_is_written_whole_or_not_at_all(tmp_path):
+    """An audit's outputs (AuditResult.to_csv): one that fails leaves every file as it was, and no temporary."""
+    (tmp_path / "b.csv").write_text("older\n")
+
+    def fail(path: Path) -> None:
+        raise OSError(errno.EFBIG, "File too large")
+
+    with pytest.raises(OutputError, match="b.csv: cannot be written: the file grew beyond the file-size limit"):
+        write_file_set({tmp_path / "a.csv": lambda path: path.write_text("new\n"), tmp_path / "b.csv": fail})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.csv"] and (tmp_path / "b.csv").read_text() == "older\n"
 
 
 def test_a_run_that_cannot_record_its_failure_does_not_end_the_batch(two_scenarios, tmp_path):

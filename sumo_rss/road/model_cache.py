@@ -1,10 +1,11 @@
 """A disk cache of the road models built from a network file, so that a city network is read and built once.
 
 An entry is keyed by the SHA-256 of the network file's bytes (a changed file is a new key) and by what it holds
-(``kind``: the road network, the junction model, the signal programs). Its header names the format, the kind, the
-network's hash, a fingerprint of the code that builds the models and the payload's own hash; an entry whose
-header does not match, or whose payload is damaged, is rebuilt and overwritten, never used. Entries are written
-atomically (a temporary file renamed into place), so concurrent runs of one network never read half an entry.
+(``kind``: the road network, the junction model, the signal programs, the topology index). Its header names the
+format, the kind, the network's hash, a fingerprint of the code that builds the models and the payload's own hash;
+an entry whose header does not match, or whose payload is damaged, is rebuilt and overwritten, never used. Entries
+are written atomically (a temporary file renamed into place), so concurrent runs of one network never read half an
+entry.
 
 Where: ``$SUMO_RSS_CACHE_DIR`` if set (``off`` turns the cache off), else ``$XDG_CACHE_HOME/sumo_rss``, else
 ``~/.cache/sumo_rss``. A directory that cannot be written to leaves every run building the models itself (with one
@@ -31,7 +32,8 @@ CACHE_OFF = "off"
 FORMAT = 1  # of the entry file itself (the code that builds the models is fingerprinted separately)
 MAGIC = b"sumo_rss road model cache\n"
 # The modules whose code decides what a cached model holds: an entry built by other code is not used.
-_BUILDERS = ("frenet", "junctions", "link_pairs", "model_cache", "net_file", "network", "reach", "strip_overlap", "two_way")
+_BUILDERS = ("frenet", "junctions", "link_pairs", "model_cache", "net_check", "net_file", "network", "reach",
+             "strip_overlap", "topology", "two_way")
 T = TypeVar("T")
 _kept: dict[str, tuple[str, object]] = {}  # kind → (network's digest, model) of the last kept model
 _warned_unwritable = False

@@ -147,7 +147,7 @@ class Auditor:
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
                  trace_class: str | None = None, signal_rule: bool = True, raw_episodes: bool = False,
-                 junction_brake_min: bool = False, record_states: bool = False):
+                 junction_brake_min: bool = False, record_states: bool = False, spool: Path | None = None):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
         avoidable yellow-light entries as violations (docs/rss.md). ``raw_episodes``: an episode that re-opens
@@ -155,14 +155,17 @@ class Auditor:
         ``junction_brake_min``: a car owing braking at a junction must brake at b_min after ρ until stopped
         however far before the conflict area it stops, as ad_rss reads the response (default: a car that never
         enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
-        the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer)."""
+        the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer); ``spool``: a folder they
+        go to as they come (:mod:`sumo_rss.spool`) instead of memory, which must stay until the result is
+        written."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self.record_states = record_states
-        self._states = EpisodeStateTrace(trace_class, record_states) if trace_class or record_states else None
+        self._states = EpisodeStateTrace(trace_class, record_states, spool=spool) \
+            if trace_class or record_states else None
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
@@ -180,7 +183,8 @@ class Auditor:
         params = self.params.hold(moving, snapshot)
         frame = vehicle_frame(snapshot, self.network, params, self._routes.remaining(snapshot), moving)
         road = evaluate(snapshot, frame, self.network)
-        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in snapshot.ids], dtype=np.int64)
+        ids = snapshot.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
+        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in ids], dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
                                            horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0) \
@@ -200,7 +204,7 @@ class Auditor:
             area_number = np.concatenate([np.full(len(road), -1), number[first]])
         else:
             situations, keys = road, road_keys
-        new_vehicle = np.array([v not in self._prev_ids for v in snapshot.ids], dtype=bool)
+        new_vehicle = np.array([v not in self._prev_ids for v in ids], dtype=bool)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
             vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed,
@@ -212,7 +216,7 @@ class Auditor:
         if self._signal_rule is not None:
             self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
-        self._prev_ids = set(snapshot.ids.tolist())
+        self._prev_ids = set(ids)
         self.pair_steps += len(situations)
         return situations
 

@@ -3,13 +3,15 @@ responses' bounds with each car's actual value (``pair_states.csv`` for the ego'
 for every episode: what the viewer charts for a selected pair).
 
 One row per episode and step from ``t_b`` to its last dangerous step, collected once per step as arrays (no Python
-loop over pairs); memory grows with the summed duration of the episodes (~66 bytes per episode-step), up to a bound.
+loop over pairs); memory grows with the summed duration of the episodes (~66 bytes per episode-step), up to a bound,
+unless the rows are spooled to disk as they come (:mod:`sumo_rss.spool`; ``sumo-rss audit`` does).
 """
 from __future__ import annotations
 
 import warnings
 import zipfile
 from dataclasses import dataclass, fields
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +19,7 @@ import pandas as pd
 
 from ..errors import SumoRssError
 from ..files import write_npz
+from ..spool import ColumnSpool, SpooledColumn
 from .responsibility import ResponsibilityTracker
 from .situations import PairSituations
 
@@ -36,7 +39,8 @@ class EpisodeStates:
     ``lon_d_min``, ``lat_gap``, ``lat_d_min`` [m] (as in pair_states.csv; lateral NaN at a junction), and per car
     (column 0: vehicle_a, 1: vehicle_b) ``accel`` [m/s²] with its owed bounds ``accel_max`` / ``accel_min`` and
     ``lat_speed`` (towards the other car) [m/s] with ``lat_speed_max``; a bound is NaN where it does not apply (the
-    step at t_b is not judged)."""
+    step at t_b is not judged). The per-row columns of a spooled recording are :class:`EpisodeRows`, read from disk
+    when converted (``np.asarray``)."""
 
     episode_keys: np.ndarray
     episode_start: np.ndarray
@@ -68,25 +72,49 @@ class EpisodeStates:
                                                           self.episode_start[1:])}
 
     def write(self, path: Path) -> None:
-        """As ``.npz`` (float32 values: 0.1 mm on a 1 km gap), deterministic bytes."""
+        """As ``.npz`` (float32 values: 0.1 mm on a 1 km gap), deterministic bytes; one column in memory at a time."""
         kept = ("episode_keys", "episode_start", "time", "cut_at")
-        write_npz(path, {f.name: np.asarray(getattr(self, f.name), dtype=None if f.name in kept else np.float32)
+        write_npz(path, {f.name: partial(np.asarray, getattr(self, f.name), None if f.name in kept else np.float32)
                          for f in fields(self)})
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeRows:
+    """One column of the recorded steps in episode order: rows ``order`` of the concatenated ``parts`` (arrays or
+    spooled columns), read and reordered when converted (``np.asarray``)."""
+
+    parts: tuple[np.ndarray | SpooledColumn, ...]
+    order: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def __array__(self, dtype: np.dtype | None = None, copy: bool | None = None) -> np.ndarray:
+        rows = np.concatenate([np.asarray(part) for part in self.parts])[self.order]
+        return rows if dtype is None else rows.astype(dtype, copy=False)
 
 
 class EpisodeStateTrace:
     """Collects the states of the open episodes after every step of a :class:`ResponsibilityTracker`: those that
     involve a car of ``vclass`` (pair_states.csv, in full precision), and with ``every_episode`` the others too
     (float32), up to ``max_rows`` of them: from the step that would pass it on, only ``vclass``'s episodes are kept
-    (``cut_at``, with a warning), so a long run's memory stays bounded (~66 bytes per episode-step)."""
+    (``cut_at``, with a warning), so a long run's memory stays bounded (~66 bytes per episode-step). ``spool``: a
+    folder the rows go to as they come (:mod:`sumo_rss.spool`), memory then holds a few MB of them until they are
+    written (:meth:`episode_states`: then one column at a time, and 16 bytes per row to put them in episode order)."""
 
-    def __init__(self, vclass: str | None, every_episode: bool, max_rows: int | None = None):
+    def __init__(self, vclass: str | None, every_episode: bool, max_rows: int | None = None,
+                 spool: Path | None = None):
         self.vclass = vclass
         self.every_episode = every_episode
         self.max_rows = MAX_OTHER_ROWS if max_rows is None else max_rows
         self.cut_at: float | None = None  # [s] the first step whose other episodes were not kept
-        self._mine: list[tuple] = []  # per step: (time, serials, gaps..., dangerous, bounds [5, n, 2])
-        self._others: list[tuple] = []
+        self.spooled = spool is not None
+        # Per row: time, serial, gaps, dangerous, bounds (car a, car b); the vclass's episodes in full precision.
+        self._mine, self._others = (ColumnSpool({"time": np.float64, "serial": np.int64,
+                                                 **{name: dtype for name in _GAPS}, "dangerous": bool,
+                                                 **{name: (np.float32, (2,)) for name in _BOUNDS}}, spool,
+                                                STATE_FILE)
+                                    for dtype in (np.float64, np.float32))
         self._other_rows = 0
 
     def step(self, time: float, tracker: ResponsibilityTracker, keys: np.ndarray, situations: PairSituations) -> None:
@@ -117,39 +145,33 @@ class EpisodeStateTrace:
             hit = judged.serial[pos] == serials  # episodes opened at this step were not judged
             for k, name in enumerate(_BOUNDS):
                 bounds[k, hit] = getattr(judged, name)[pos[hit]]
-        gaps = [getattr(situations, name)[rows] for name in _GAPS]
-        for chunks, part, dtype in ((self._mine, involves, np.float64), (self._others, ~involves, np.float32)):
+        for spool, part in ((self._mine, involves), (self._others, ~involves)):
             if part.any():
-                chunks.append((time, serials[part], *(g[part].astype(dtype) for g in gaps),
-                               situations.dangerous[rows][part], bounds[:, part]))
+                spool.append(time=np.full(int(part.sum()), time), serial=serials[part],
+                             **{name: getattr(situations, name)[rows][part] for name in _GAPS},
+                             dangerous=situations.dangerous[rows][part],
+                             **{name: bounds[k, part] for k, name in enumerate(_BOUNDS)})
         self._other_rows += int((~involves).sum())
-
-    @staticmethod
-    def _columns(chunks: list[tuple]) -> dict[str, np.ndarray]:
-        names = ("serial", *_GAPS, "dangerous")
-        columns = {"time": np.repeat([c[0] for c in chunks], [len(c[1]) for c in chunks]).astype(np.float64)}
-        columns.update({name: np.concatenate([c[k + 1] for c in chunks]) if chunks else np.zeros(0)
-                        for k, name in enumerate(names)})
-        bounds = np.concatenate([c[-1] for c in chunks], axis=1) if chunks else np.zeros((len(_BOUNDS), 0, 2))
-        columns.update(zip(_BOUNDS, bounds))
-        return columns
 
     def pair_states(self, run_id: str, serial_keys: dict[int, str]) -> pd.DataFrame:
         """pair_states.csv: the steps of the episodes involving ``vclass``, step by step (PAIR_STATE_COLUMNS)."""
-        c = self._columns(self._mine)
+        c = {name: np.asarray(self._mine.column(name)) for name in ("serial", "time", *_GAPS, "dangerous")}
         table = {"run_id": run_id, "episode_key": [serial_keys[int(s)] for s in c["serial"]]}
         table.update({name: c[field] for name, field in zip(PAIR_STATE_COLUMNS[2:], ("time", *_GAPS, "dangerous"))})
         return pd.DataFrame(table, columns=PAIR_STATE_COLUMNS)
 
     def episode_states(self, serial_keys: dict[int, str]) -> EpisodeStates:
-        """Every recorded step, grouped by episode (episodes in the order they opened)."""
-        mine, others = self._columns(self._mine), self._columns(self._others)
-        c = {name: np.concatenate([mine[name], others[name]]) for name in mine}
-        order = np.argsort(c["serial"], kind="stable")  # an episode's steps are all in one part, in time order
-        serial = c["serial"][order].astype(np.int64)
+        """Every recorded step, grouped by episode (episodes in the order they opened); spooled, its per-row columns
+        stay on disk until written (:class:`EpisodeRows`)."""
+        parts = (self._mine, self._others)
+        serial = np.concatenate([np.asarray(part.column("serial")) for part in parts])
+        order = np.argsort(serial, kind="stable")  # an episode's steps are all in one part, in time order
+        serial = serial[order]
         first = np.r_[True, serial[1:] != serial[:-1]] if len(serial) else np.zeros(0, dtype=bool)
         start = np.r_[np.flatnonzero(first), len(serial)].astype(np.int64)
         keys = np.array([serial_keys[int(s)] for s in serial[first]], dtype=str)
-        return EpisodeStates(keys, start, c["time"][order], *(c[name][order] for name in _GAPS),
-                             *(c[name][order] for name in _BOUNDS),
-                             cut_at=np.nan if self.cut_at is None else self.cut_at)
+        columns = {name: EpisodeRows(tuple(part.column(name) for part in parts), order)
+                   for name in ("time", *_GAPS, *_BOUNDS)}
+        if not self.spooled:
+            columns = {name: np.asarray(rows) for name, rows in columns.items()}
+        return EpisodeStates(keys, start, **columns, cut_at=np.nan if self.cut_at is None else self.cut_at)

@@ -450,7 +450,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               collisions: Path | None = None, tls_states: Path | None = None, ego_ids: tuple[str, ...] = (),
               run_id: str = "", signal_rule: bool = True, raw_episodes: bool = False, junction_brake_min: bool = False,
               trace_class: str | None = None, on_progress: Callable[[AuditProgress], None] | None = None,
-              stop: Callable[[], bool] | None = None, record_states: bool = False,
+              stop: Callable[[], bool] | None = None, record_states: bool = False, spool: Path | None = None,
               on_snapshot: Callable[[WorldSnapshot], None] | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
@@ -458,8 +458,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(AuditProgress)`` is called after
     every time step. ``stop()`` is asked after every time step: True ends the audit there, as if the file ended
     there (with a warning that names the step). ``signal_rule``, ``raw_episodes``, ``junction_brake_min``,
-    ``trace_class``, ``record_states``: as for :class:`Auditor`. ``on_snapshot(snapshot)``: after every audited time
-    step (e.g. a viewer's recorder)."""
+    ``trace_class``, ``record_states``, ``spool``: as for :class:`Auditor`. ``on_snapshot(snapshot)``: after every
+    audited time step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -471,7 +471,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
         raise FcdError(str(exc)) from exc
     contacts = ContactTracker()
     auditor = Auditor(network, params, run_id, trace_class=trace_class, signal_rule=signal_rule,
-                      raw_episodes=raw_episodes, junction_brake_min=junction_brake_min, record_states=record_states)
+                      raw_episodes=raw_episodes, junction_brake_min=junction_brake_min, record_states=record_states,
+                      spool=spool)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0

@@ -373,25 +373,35 @@ def _leads_to(network: RoadNetwork, lanes: np.ndarray, targets: np.ndarray) -> n
 
 def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarray) -> np.ndarray:
     """[m] where a car on each of ``lanes`` ends up across the edge of ``ref_lanes`` if it keeps its lane: the
-    offset of the lane it leads on to there (the nearest, where it leads to several) from the reference lane; NaN
-    where it leads to no lane of that edge (it must change lanes on the way)."""
-    pairs, inverse = _distinct_lane_pairs(network, lanes, ref_lanes)
-    out = np.full(len(pairs), np.nan)
-    for k, (lane, ref) in enumerate(pairs):
-        downstream = network.downstream_lanes(lane)
-        on_edge = downstream[network.lane_edge[downstream] == network.lane_edge[ref]]
-        if on_edge.size:
-            offsets = network.lane_offset[on_edge] - network.lane_offset[ref]
-            out[k] = offsets[np.argmin(np.abs(offsets))]
+    offset of the lane it leads on to there (the nearest, where it leads to several: the first of them in lane
+    order) from the reference lane; NaN where it leads to no lane of that edge (it must change lanes on the way)."""
+    lane, ref, inverse = _distinct_lane_pairs(network, lanes, ref_lanes)
+    sources, source_of = np.unique(lane, return_inverse=True)
+    rows = [network.downstream_lanes(source) for source in sources.tolist()]  # per lane, not per pair
+    row_length = np.array([len(row) for row in rows], dtype=np.int64)
+    reached = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+    # Every (pair, lane its lane leads on to), in the order of each lane's row.
+    count = row_length[source_of]
+    pair = np.repeat(np.arange(len(lane)), count)
+    within = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    candidate = reached[np.repeat((np.cumsum(row_length) - row_length)[source_of], count) + within]
+    on_edge = network.lane_edge[candidate] == network.lane_edge[ref[pair]]
+    candidate, pair = candidate[on_edge], pair[on_edge]
+    offsets = network.lane_offset[candidate] - network.lane_offset[ref[pair]]
+    nearest = np.lexsort((np.arange(len(pair)), np.abs(offsets), pair))  # per pair, the first of the nearest
+    nearest = nearest[np.r_[True, pair[nearest][1:] != pair[nearest][:-1]]] if len(pair) else nearest
+    out = np.full(len(lane), np.nan)
+    out[pair[nearest]] = offsets[nearest]
     return out[inverse]
 
 
 def _distinct_lane_pairs(network: RoadNetwork, lanes: np.ndarray, others: np.ndarray
-                         ) -> tuple[list[tuple[int, int]], np.ndarray]:
-    """The distinct (lane, other lane) pairs of two lane-index arrays, and the pair of each element."""
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct (lane, other lane) pairs of two lane-index arrays (two arrays), and the pair of each element."""
     count = len(network.lane_ids)
-    keys, inverse = np.unique(np.asarray(lanes) * count + np.asarray(others), return_inverse=True)
-    return [(int(key) // count, int(key) % count) for key in keys], inverse.ravel()
+    keys, inverse = np.unique(np.asarray(lanes, dtype=np.int64) * count + np.asarray(others, dtype=np.int64),
+                              return_inverse=True)
+    return keys // count, keys % count, inverse.ravel()
 
 
 def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np.ndarray,

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import SumoRssError
 from ..files import write_npz
+from ..spool import ColumnSpool
 
 TRAJECTORY_FILE = "trajectories.npz"
 NEAR_EGO_M = 150.0  # [m] a run without --fcd records the vehicles whose front bumper is this close to the ego's
@@ -99,9 +100,11 @@ class TrajectoryRecorder:
     """Collects the snapshots of a run (:meth:`add`, once per step) and writes ``trajectories.npz``.
 
     ``near_ego_m``: record only the vehicles within this distance [m] of the ego (none at steps without it on the
-    road); None: every vehicle. Costs a few numpy calls and one dict look-up per vehicle per step."""
+    road); None: every vehicle. ``spool``: a folder the rows go to as they are recorded (:mod:`sumo_rss.spool`;
+    memory then holds a few MB of them, the per-step times and the per-vehicle sizes); None: kept in memory. Costs
+    a few numpy calls and one dict look-up per vehicle per step."""
 
-    def __init__(self, net_file: Path, near_ego_m: float | None = None):
+    def __init__(self, net_file: Path, near_ego_m: float | None = None, spool: Path | None = None):
         self.net_file = str(Path(net_file).resolve())
         self.near_ego_m = near_ego_m
         self._index: dict[str, int] = {}
@@ -111,7 +114,8 @@ class TrajectoryRecorder:
         self._vtype: list[str] = []
         self._times: list[float] = []
         self._counts: list[int] = []
-        self._columns: list[tuple[np.ndarray, ...]] = []
+        self._rows_of_steps = ColumnSpool({"vehicle": np.int32, "x": np.float32, "y": np.float32,
+                                           "heading": np.float32, "speed": np.float32}, spool, TRAJECTORY_FILE)
         self._signal_ids: dict[str, int] = {}
         self._signal_last: dict[str, str] = {}
         self._signal_changes: list[tuple[float, int, str]] = []
@@ -130,9 +134,9 @@ class TrajectoryRecorder:
                 self._vtype.append(str(snapshot.vtype[i]))
         self._times.append(float(snapshot.time))
         self._counts.append(len(ids))
-        self._columns.append((np.fromiter((index[v] for v in ids), dtype=np.int32, count=len(ids)),
-                              *(np.asarray(a)[rows].astype(np.float32)
-                                for a in (snapshot.x, snapshot.y, snapshot.heading, snapshot.speed))))
+        self._rows_of_steps.append(vehicle=np.fromiter((index[v] for v in ids), dtype=np.int32, count=len(ids)),
+                                   **{name: np.asarray(getattr(snapshot, name))[rows]
+                                      for name in ("x", "y", "heading", "speed")})
         for signal, state in (snapshot.tls_states or {}).items():
             if self._signal_last.get(signal) != state:
                 self._signal_last[signal] = state
@@ -155,18 +159,13 @@ class TrajectoryRecorder:
 
     def write(self, path: Path) -> None:
         """Write everything recorded so far to ``path`` (atomically, deterministic bytes)."""
-        def column(i: int, dtype: type) -> np.ndarray:
-            parts = [c[i] for c in self._columns]
-            return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype=dtype)
-
-        changes = self._signal_changes
+        changes, column = self._signal_changes, self._rows_of_steps.column
         write_npz(path, {
             "format_version": np.int32(FORMAT_VERSION), "scope": np.str_(self.scope),
             "net_file": np.str_(self.net_file),
             "time": np.array(self._times, dtype=np.float64),
             "step_start": np.concatenate([[0], np.cumsum(self._counts, dtype=np.int64)]).astype(np.int64),
-            "vehicle": column(0, np.int32), "x": column(1, np.float32), "y": column(2, np.float32),
-            "heading": column(3, np.float32), "speed": column(4, np.float32),
+            **{name: column(name) for name in ("vehicle", "x", "y", "heading", "speed")},
             "ids": np.array(list(self._index), dtype=str), "length": np.array(self._length, dtype=np.float32),
             "width": np.array(self._width, dtype=np.float32), "vclass": np.array(self._vclass, dtype=str),
             "vtype": np.array(self._vtype, dtype=str),
