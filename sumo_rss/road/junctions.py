@@ -181,7 +181,12 @@ class JunctionModel:
 
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
-        ranks = np.full(len(self.links), -1, dtype=int)
+        chars = self.signal_chars(tls_states)
+        return np.where(chars > 0, _RANK_OF_BYTE[chars], -1)
+
+    def signal_chars(self, tls_states: dict[str, str] | None) -> np.ndarray:
+        """[L] uint8: every link's current signal state character (its ASCII byte); 0 if unsignalised or unknown."""
+        out = np.zeros(len(self.links), dtype=np.uint8)
         if tls_states:
             names, number = self._signals
             states = [tls_states.get(name, "") for name in names]  # unknown: as long as no index
@@ -189,8 +194,8 @@ class JunctionModel:
             chars = np.frombuffer("".join(states).encode("ascii", "replace"), dtype=np.uint8)
             k = np.flatnonzero(number >= 0)
             k = k[(self.link_tls_index[k] >= 0) & (self.link_tls_index[k] < length[number[k]])]
-            ranks[k] = _RANK_OF_BYTE[chars[(np.cumsum(length) - length)[number[k]] + self.link_tls_index[k]]]
-        return ranks
+            out[k] = chars[(np.cumsum(length) - length)[number[k]] + self.link_tls_index[k]]
+        return out
 
 
 def _internal_path(via: int, network: RoadNetwork) -> tuple[int, ...]:

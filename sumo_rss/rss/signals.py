@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from bisect import bisect_right
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 
@@ -49,10 +50,7 @@ class SignalRule:
         self.junctions = junctions
         self.run_id = run_id
         self.records: list[dict] = []
-        # id → {link: (its state, could have stopped when it turned yellow, could stop from here)} for the links
-        # it may take from its approach lane
-        self._approach: dict[str, dict[int, tuple[str, bool, bool]]] = {}
-        self._where: dict[str, tuple[float, float, float]] = {}  # id → (x [m], y [m], speed [m/s]) of an approacher
+        self._approach = _Approach.empty(junctions.lane_links.shape[1])  # the cars approaching at the step before
         self._time: float | None = None  # [s] of the step before
 
     def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
@@ -62,61 +60,56 @@ class SignalRule:
         j = self.junctions
         if not snapshot.tls_states:
             return
+        chars = j.signal_chars(snapshot.tls_states)
         lane = frame.lane
-        inside = j.lane_link[lane]
         links = self._approach_links(frame)
         # Whether each car could stop at its stop line from here at b_min.
         can_stop = snapshot.speed ** 2 / (2.0 * frame.params.lon_brake_min) <= \
             self.network.lane_length[lane] - frame.lane_pos
+        before = self._approach
+        ids = snapshot.ids.astype(str)
+        seen, at = before.find(ids)
+        approaching = (links >= 0).any(axis=1)
         # Cars that approached a signalised link at the step before and left the approach lane (onto the link's
-        # internal lane, or past it within one step).
-        was_approaching = np.isin(snapshot.ids, list(self._approach)) if self._approach else \
-            np.zeros(len(snapshot.ids), dtype=bool)
-        approach, where = {}, {}
-        for k in np.flatnonzero((links >= 0).any(axis=1) | (inside >= 0) | was_approaching):
-            vid = str(snapshot.ids[k])
-            before = self._approach.get(vid, {})
-            if not (links[k] >= 0).any():
-                crossed = int(inside[k]) if inside[k] >= 0 else \
-                    next((lk for lk in before if j.link_to_edge[lk] == frame.edge[k]), -1)
-                if crossed in before and not self._teleported(vid, snapshot, k):
-                    # crossed the stop line of this link since the step before
-                    char = self._state(snapshot, crossed)
-                    self._judge(vid, str(snapshot.vclass[k]), char, self._could_stop(char, before[crossed], None),
-                                float(snapshot.speed[k]), snapshot.time)
-                continue
-            states = {}
-            for lk in (int(x) for x in links[k] if x >= 0):
-                char = self._state(snapshot, lk)
-                states[lk] = (char, self._could_stop(char, before.get(lk), bool(can_stop[k])), bool(can_stop[k]))
-            approach[vid] = states
-            where[vid] = (float(snapshot.x[k]), float(snapshot.y[k]), float(snapshot.speed[k]))
-        self._approach, self._where, self._time = approach, where, snapshot.time
+        # internal lane, or past it within one step): judged by the state of the link they crossed.
+        inside = j.lane_link[lane]
+        for k in np.flatnonzero(seen & ~approaching):
+            row = int(at[k])
+            held = [int(lk) for lk in before.links[row] if lk >= 0]
+            crossed = int(inside[k]) if inside[k] >= 0 else \
+                next((lk for lk in held if j.link_to_edge[lk] == frame.edge[k]), -1)
+            if crossed in held and not self._teleported(before, row, snapshot, k):
+                slot = int(np.flatnonzero(before.links[row] == crossed)[0])
+                char = chr(chars[crossed]) if chars[crossed] else ""
+                could_stop = bool(char) and char in YELLOW and bool(_could_stop_before(
+                    before.char[row, slot], before.decision[row, slot], before.can_stop[row, slot]))
+                self._judge(str(ids[k]), str(snapshot.vclass[k]), char, could_stop, float(snapshot.speed[k]),
+                            snapshot.time)
+        # The approaching cars' links, their states now, and whether each car could have stopped when its light
+        # turned yellow: decided at the step the light first showed yellow, from where the car was at the step
+        # before; a car first seen under yellow, from where it is now.
+        a = np.flatnonzero(approaching)
+        mine = links[a]
+        char = np.where(mine >= 0, chars[np.maximum(mine, 0)], 0).astype(np.uint8)
+        rows = at[a]
+        same = (before.links[rows][:, None, :] == mine[:, :, None]) & (mine >= 0)[:, :, None] & \
+            seen[a][:, None, None] if len(before) else np.zeros(mine.shape + mine.shape[1:], dtype=bool)
+        had = same.any(axis=2)
+        slot = same.argmax(axis=2)
+        earlier = np.where(had, _could_stop_before(before.char[rows[:, None], slot], before.decision[rows[:, None], slot],
+                                                   before.can_stop[rows[:, None], slot]) if len(before) else False,
+                           can_stop[a][:, None])
+        self._approach = _Approach.of(ids[a], mine, char, _is_yellow(char) & earlier,
+                                      np.repeat(can_stop[a][:, None], mine.shape[1], axis=1),
+                                      np.column_stack([snapshot.x[a], snapshot.y[a], snapshot.speed[a]]))
+        self._time = snapshot.time
 
-    def _teleported(self, vid: str, snapshot: WorldSnapshot, k: int) -> bool:
+    def _teleported(self, before: _Approach, row: int, snapshot: WorldSnapshot, k: int) -> bool:
         """Whether car ``k`` moved farther since the step before than its speeds then and now allow."""
-        x, y, v = self._where[vid]
+        x, y, v = before.where[row]
         dt = snapshot.time - self._time
         reach = max(v, float(snapshot.speed[k])) * dt + 0.5 * TELEPORT_ACCEL * dt * dt + TELEPORT_SLACK
         return float(np.hypot(snapshot.x[k] - x, snapshot.y[k] - y)) > reach
-
-    def _state(self, snapshot: WorldSnapshot, link: int) -> str:
-        """The signal state character of ``link`` in ``snapshot`` ('' if unknown)."""
-        j = self.junctions
-        state = snapshot.tls_states.get(j.link_tls[link], "")
-        return state[j.link_tls_index[link]] if 0 <= j.link_tls_index[link] < len(state) else ""
-
-    @staticmethod
-    def _could_stop(char: str, before: tuple[str, bool, bool] | None, can_stop_now: bool | None) -> bool:
-        """Whether the car could have stopped at b_min when its light turned yellow (False unless ``char`` is
-        yellow): decided at the step the light first showed yellow, from where the car was at the step before
-        (``before``: that step's (state, decision, could stop from there)); a car first seen under yellow, from
-        where it is now."""
-        if not (char and char in YELLOW):
-            return False
-        if before is None:
-            return bool(can_stop_now)
-        return before[1] if before[0] and before[0] in YELLOW else before[2]
 
     def _approach_links(self, frame: VehicleFrame) -> np.ndarray:
         """[n, links of a lane] the signalised links (-1: none) each car on an approach lane may take: the one of
@@ -140,6 +133,55 @@ class SignalRule:
         self.records.append({"run_id": self.run_id, "episode_key": "", "vehicle_id": vid, "vehicle_class": vclass,
                              "role": "signal", "constraint": constraint.value, "bound": 0.0,
                              "worst_actual": speed, "excess": speed, "t_start_s": time, "t_end_s": time})
+
+
+@dataclass(frozen=True, eq=False)
+class _Approach:
+    """The cars approaching signalised links at one step, sorted by id; per car and link slot (-1: none): the
+    link, its state character's byte then (0: unknown), whether the car could have stopped when its light turned
+    yellow (as decided then), and whether it could stop from where it was; per car its x, y [m] and speed [m/s]."""
+
+    ids: np.ndarray
+    links: np.ndarray
+    char: np.ndarray
+    decision: np.ndarray
+    can_stop: np.ndarray
+    where: np.ndarray
+
+    @staticmethod
+    def empty(slots: int) -> _Approach:
+        return _Approach.of(np.zeros(0, dtype=str), np.zeros((0, slots), dtype=int),
+                            np.zeros((0, slots), dtype=np.uint8), np.zeros((0, slots), dtype=bool),
+                            np.zeros((0, slots), dtype=bool), np.zeros((0, 3)))
+
+    @staticmethod
+    def of(ids: np.ndarray, links: np.ndarray, char: np.ndarray, decision: np.ndarray, can_stop: np.ndarray,
+           where: np.ndarray) -> _Approach:
+        order = np.argsort(ids, kind="stable")
+        return _Approach(ids[order], links[order], char[order], decision[order], can_stop[order], where[order])
+
+    def find(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(approached at that step, its row) per id."""
+        if not len(self):
+            return np.zeros(len(ids), dtype=bool), np.zeros(len(ids), dtype=int)
+        at = np.clip(np.searchsorted(self.ids, ids), 0, len(self) - 1)
+        return self.ids[at] == ids, at
+
+    def __len__(self) -> int:
+        return int(self.ids.shape[0])
+
+
+_YELLOW_BYTES = np.frombuffer(YELLOW.encode(), dtype=np.uint8)
+
+
+def _is_yellow(char: np.ndarray) -> np.ndarray:
+    return np.isin(char, _YELLOW_BYTES)
+
+
+def _could_stop_before(char: np.ndarray, decision: np.ndarray, can_stop: np.ndarray) -> np.ndarray:
+    """Whether a car could have stopped when its light turned yellow, from its state at the step before: the
+    decision taken then if the light already showed yellow, else whether it could stop from where it was."""
+    return np.where(_is_yellow(char), decision, can_stop)
 
 
 class SignalStates:
