@@ -66,7 +66,7 @@ class _Asked(_Soa):
 
 @dataclass
 class _Windows(_Soa):
-    """Open matching windows: the legal candidates of c₁ (by uid) at t₀ and how far its motion since is from each."""
+    """Open matching windows: the legal candidates of c₁ (by uid) at t₀, how far its motion since is from each."""
 
     serial: np.ndarray
     uid: np.ndarray
@@ -339,6 +339,7 @@ class Rule5Tracker:
         if some.size:
             n = some.size
             self._windows.extend(_Windows(
-                serial=serial[some], uid=c1_uid[some], t0=np.full(n, t), t_end=t + rho[some], v0=cand.v[some, 0, 0], u0=cand.u[some, 0, 0], cap=cand.speed_cap[some], half_lane=cand.half_lane[some],
+                serial=serial[some], uid=c1_uid[some], t0=np.full(n, t), t_end=t + rho[some], v0=cand.v[some, 0, 0],
+                u0=cand.u[some, 0, 0], cap=cand.speed_cap[some], half_lane=cand.half_lane[some],
                 back=cand.lat_back[some], lon=cand.lon_accel[some], lat=cand.lat_accel[some], legal=legal[some],
                 excess=np.full((n, N_CANDIDATES), -np.inf), steps=np.zeros(n, np.int64), lon_sum=np.zeros(n)))
