@@ -136,12 +136,17 @@ def candidate_motion(v0: np.ndarray, u0: np.ndarray, lon_accel: np.ndarray, lat_
     return x, v, y, u
 
 
+def grid(horizon: float) -> np.ndarray:
+    """[s] the sample times 0, GRID_STEP, ..., ``horizon`` (the last one exactly)."""
+    return np.linspace(0.0, horizon, int(np.ceil(horizon / GRID_STEP - 1e-9)) + 1)
+
+
 def candidates(v0: np.ndarray, u0: np.ndarray, p: RssParamArrays, speed_limit: np.ndarray, half_lane: np.ndarray,
-               horizon: float) -> Candidates:
+               times: np.ndarray) -> Candidates:
     """The fixed candidate set (rss.md §8) of cars at speed ``v0`` and lateral speed ``u0`` [q]: longitudinal
     {−b_max, −b_min, 0, a_acc} (accelerating up to the larger of ``speed_limit`` and v0) x lateral {−a_lat, 0,
-    +a_lat}, the lateral speed brought back to 0 at a_lat once the car has moved ``half_lane``."""
-    times = np.linspace(0.0, horizon, int(np.ceil(horizon / GRID_STEP - 1e-9)) + 1)
+    +a_lat}, the lateral speed brought back to 0 at a_lat once the car has moved ``half_lane``, sampled at
+    ``times`` [s] (:func:`grid`; the first 0, the last the horizon)."""
     lon, lat = candidate_accels(p)
     cap = np.maximum(speed_limit, v0)
     back = np.maximum(p.lat_accel_max, 1e-9)
@@ -173,20 +178,38 @@ class PairRows:
     brake_c1: np.ndarray  # [m/s²] opposite pairs: the braking each car's d_min assumes (b_corr in its correct lane)
     brake_o: np.ndarray
 
+    def take(self, index: np.ndarray) -> PairRows:
+        return PairRows(**{name: getattr(self, name).take(index) if name in ("p_c1", "p_o") else
+                           getattr(self, name)[index] for name in self.__dataclass_fields__})
+
+    def beyond_reach(self, c: Candidates) -> np.ndarray:
+        """[r] rows whose cars cannot touch within the horizon whatever c₁'s candidate: farther apart on either axis
+        than the most both can close in T (the other on its naive prediction, c₁ braking at b_max or accelerating at
+        a_acc, and swerving at a_lat from its lateral speed)."""
+        t = c.times[-1]
+        v_c1, u_c1 = c.v[self.q, 0, 0], c.u[self.q, 0, 0]
+        a_c1 = np.maximum(self.p_c1.lon_brake_max, self.p_c1.lon_accel_max)
+        lon = np.abs(self.dir_o * self.v_o - self.dir_c1 * v_c1) * t + 0.5 * (np.abs(self.a_o) + a_c1) * t * t
+        lat = (np.abs(self.u_o) + np.abs(u_c1)) * t + 0.5 * self.p_c1.lat_accel_max * t * t
+        widen = 0.5 * (self.p_c1.lat_fluctuation_margin + self.p_o.lat_fluctuation_margin)
+        return (np.abs(self.dx) - self.half_lon > lon) | (np.abs(self.dy) - self.half_lat - widen > lat)
+
 
 def _column(p: RssParamArrays) -> RssParamArrays:
     return RssParamArrays(*(getattr(p, name)[:, None] for name in PARAM_NAMES))
 
 
-def relative_motion(c: Candidates, rows: PairRows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(DX, DY, other's lon speed, its lat speed) [r, 12, K+1]: the other's centre minus c₁'s in the pair frame
-    with c₁ on each candidate and the other on its naive prediction (lateral acceleration 0)."""
-    t = c.times
+def relative_motion(c: Candidates, rows: PairRows, k: slice = slice(None)
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(DX, DY, other's lon speed, its lat speed) [r, 12, K+1] (the grid times ``k``): the other's centre minus
+    c₁'s in the pair frame with c₁ on each candidate and the other on its naive prediction (lateral acceleration
+    0)."""
+    t = c.times[k]
     x_o, v_o = naive(0.0, rows.v_o[:, None], rows.a_o[:, None], t)
     y_o = rows.u_o[:, None] * t
     d = rows.dir_o[:, None]
-    dx = rows.dx[:, None, None] + (d * x_o)[:, None, :] - rows.dir_c1[:, None, None] * c.x[rows.q]
-    dy = rows.dy[:, None, None] + (d * y_o)[:, None, :] - rows.dir_c1[:, None, None] * c.y[rows.q]
+    dx = rows.dx[:, None, None] + (d * x_o)[:, None, :] - rows.dir_c1[:, None, None] * c.x[rows.q][..., k]
+    dy = rows.dy[:, None, None] + (d * y_o)[:, None, :] - rows.dir_c1[:, None, None] * c.y[rows.q][..., k]
     return dx, dy, np.broadcast_to(v_o[:, None, :], dx.shape), np.broadcast_to(rows.u_o[:, None, None], dx.shape)
 
 
@@ -207,7 +230,7 @@ def collides(c: Candidates, rows: PairRows) -> np.ndarray:
 def dangerous_at_end(c: Candidates, rows: PairRows) -> np.ndarray:
     """[r, 12] whether the pair is dangerous (neither longitudinally nor laterally safe, rss.md §2) at t₀ + T with
     c₁ on each candidate and the other on its naive prediction; the worst-case terms as the auditor's."""
-    dx, dy, v_o, u_o = (z[..., -1] for z in relative_motion(c, rows))
+    dx, dy, v_o, u_o = (z[..., -1] for z in relative_motion(c, rows, slice(-1, None)))
     v_c1 = np.maximum(c.v[rows.q, :, -1], 0.0)
     u_c1 = rows.dir_c1[:, None] * c.u[rows.q, :, -1]
     v_o = np.maximum(v_o, 0.0)
@@ -246,16 +269,16 @@ def on_drivable_lanes(c: Candidates, offset: np.ndarray, half_lat: np.ndarray, r
     return np.all((y + half_lat[:, None, None] <= left) & (y - half_lat[:, None, None] >= right), axis=2)
 
 
-def owed_to_others(c: Candidates, q: np.ndarray, accel_max: np.ndarray, accel_min: np.ndarray,
+def owed_to_others(c: Candidates, cars: np.ndarray, q: np.ndarray, accel_max: np.ndarray, accel_min: np.ndarray,
                    lat_owed_towards: np.ndarray, tolerance: float) -> np.ndarray:
-    """[q, 12] legality (a): at t₀ each candidate satisfies the proper responses the car owes in its other open
-    episodes (rows r of car q[r]): a ≤ ``accel_max`` and a ≥ ``accel_min`` (NaN: no bound) within ``tolerance``
+    """[len(cars), 12] legality (a) of the candidates of ``cars`` (rows of ``c``): at t₀ each candidate satisfies the proper responses the car owes in its other open
+    episodes (rows r of car cars[q[r]]): a ≤ ``accel_max`` and a ≥ ``accel_min`` (NaN: no bound) within ``tolerance``
     [m/s²], and no lateral acceleration towards a road user it owes a lateral response (``lat_owed_towards``
     [r]: +1 that one is on its left, −1 on its right, 0 none)."""
-    legal = np.ones(c.lon_accel.shape, dtype=bool)
+    legal = np.ones((len(cars), c.lon_accel.shape[1]), dtype=bool)
     if q.size:
-        a = c.initial_lon_accel[q]
+        a = c.initial_lon_accel[cars[q]]
         ok = ~(a > accel_max[:, None] + tolerance) & ~(a < accel_min[:, None] - tolerance)
-        ok &= ~(np.sign(c.lat_accel[q]) * lat_owed_towards[:, None] > 0.0)
+        ok &= ~(np.sign(c.lat_accel[cars[q]]) * lat_owed_towards[:, None] > 0.0)
         np.logical_and.at(legal, q, ok)
     return legal

@@ -7,14 +7,14 @@ step with a legal manoeuvre, ρ long) — updated with array operations over all
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .evasive import (N_CANDIDATES, OPPOSITE_CODE, Candidates, PairRows, candidate_motion, candidates, collides,
-                      dangerous_at_end, on_drivable_lanes, owed_to_others)
+                      dangerous_at_end, grid, on_drivable_lanes, owed_to_others)
 from .params import EvasiveParams, RssParamArrays
 from .records import EVASIVE_CONSTRAINT
 from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES, PairSituations, VehicleFrame
@@ -247,29 +247,45 @@ class Rule5Tracker:
         target = order[pos[ask]]  # situation rows
         c1_side = resp[ask, 0].astype(np.int8)  # c₂ is a → c₁ is b
         c1 = np.where(c1_side == 0, sit.a[target], sit.b[target])
-        # Candidates of every asked c₁.
+        # The cheap tests first, each on the asked cars that still have a legal candidate: the pair at t₀ + T (the
+        # candidates' end states only), then on the time grid the drivable band, the contact with c₂ and with the
+        # other road users around c₁, and the responses c₁ owes them.
+        net, horizon = self.network, self.params.horizon_s
+        ends = self._candidates(snapshot, frame, params, c1, np.array([0.0, horizon]))
+        rows = self._rows(sit, frame, snapshot, params, target, c1, np.arange(ask.size))
+        some = np.flatnonzero(~dangerous_at_end(ends, rows).all(axis=1))
+        if not some.size:
+            return
+        ask, c1_side, c1, target = ask[some], c1_side[some], c1[some], target[some]
+        cand = self._candidates(snapshot, frame, params, c1, grid(horizon))
+        rows = replace(rows.take(some), q=np.arange(some.size))
         lane = frame.lane[c1]
-        net = self.network
-        p1 = params.take(c1)
-        cand = candidates(snapshot.speed[c1], snapshot.lat_speed[c1], p1, net.lane_speed[lane],
-                          0.5 * net.lane_width[lane], self.params.horizon_s)
-        legal = ~collides(cand, self._rows(sit, frame, snapshot, params, target, c1, np.arange(ask.size)))
-        legal &= ~dangerous_at_end(cand, self._rows(sit, frame, snapshot, params, target, c1, np.arange(ask.size)))
+        legal = ~dangerous_at_end(cand, rows)
         legal &= on_drivable_lanes(cand, frame.d[c1], frame.half_lat[c1], self._room(lane, net.lane_left),
                                    self._room(lane, net.lane_right))
-        # (d) every other road user around c₁ on its naive prediction.
+        live = np.flatnonzero(legal.any(axis=1))
+        legal[live] &= ~collides(cand, rows.take(live))
+        live = np.flatnonzero(legal.any(axis=1))
+        # (d) every other road user around c₁ (within reach over the horizon) on its naive prediction.
         road = np.flatnonzero(sit.kind < FIRST_INTERSECTION_CODE)
-        q, j = _expand(np.concatenate([sit.a[road], sit.b[road]]), c1)
-        row = np.concatenate([road, road])[j]
+        q, j = _expand(np.concatenate([sit.a[road], sit.b[road]]), c1[live])
+        q, row = live[q], np.concatenate([road, road])[j]
         keep = row != target[q]
-        q, row = q[keep], row[keep]
-        if q.size:
-            hit = collides(cand, self._rows(sit, frame, snapshot, params, row, c1[q], q))
+        if keep.any():
+            others = self._rows(sit, frame, snapshot, params, row[keep], c1[q[keep]], q[keep])
+            others = others.take(np.flatnonzero(~others.beyond_reach(cand)))
             bad = np.zeros(legal.shape, dtype=bool)
-            np.logical_or.at(bad, q, hit)
+            np.logical_or.at(bad, others.q, collides(cand, others))
             legal &= ~bad
-        legal &= self._owed(cand, tracker, e, ask, uids[c1], tolerance)
+        legal[live] &= self._owed(cand, tracker, e, ask[live], uids[c1[live]], tolerance, live)
         self._remember(t, e, ask, c1_side, uids[c1], cand, legal, params.response_time[c1])
+
+    def _candidates(self, snapshot: WorldSnapshot, frame: VehicleFrame, params: RssParamArrays, c1: np.ndarray,
+                    times: np.ndarray) -> Candidates:
+        """The candidates of the cars ``c1`` (snapshot rows) at ``times`` [s]."""
+        lane = frame.lane[c1]
+        return candidates(snapshot.speed[c1], snapshot.lat_speed[c1], params.take(c1), self.network.lane_speed[lane],
+                          0.5 * self.network.lane_width[lane], times)
 
     def _rows(self, sit: PairSituations, frame: VehicleFrame, snapshot: WorldSnapshot, params: RssParamArrays,
               rows: np.ndarray, c1: np.ndarray, q: np.ndarray) -> PairRows:
@@ -305,8 +321,10 @@ class Rule5Tracker:
         return 0.5 * net.lane_width[lane] + np.where(other >= 0, net.lane_width[np.maximum(other, 0)], 0.0)
 
     @staticmethod
-    def _owed(cand: Candidates, tracker, e, ask: np.ndarray, c1_uid: np.ndarray, tolerance: float) -> np.ndarray:
-        """Legality (a): the bounds of this step in c₁'s other open episodes."""
+    def _owed(cand: Candidates, tracker, e, ask: np.ndarray, c1_uid: np.ndarray, tolerance: float,
+              rows: np.ndarray) -> np.ndarray:
+        """Legality (a) of the asked episodes ``ask`` (candidate rows ``rows``): the bounds of this step in c₁'s
+        other open episodes."""
         n = len(e)
         q, j = _expand(np.concatenate([e.uids[:, 0], e.uids[:, 1]]), c1_uid)
         episode, side = j % n, j // n
@@ -322,24 +340,26 @@ class Rule5Tracker:
             accel_min = np.where(found, judged.accel_min[at, side], np.nan)
         other_left = np.where(side == 0, ~e.a_left[episode], e.a_left[episode])
         towards = np.where(e.owed_lat[episode], np.where(other_left, 1.0, -1.0), 0.0)
-        return owed_to_others(cand, q, accel_max, accel_min, towards, tolerance)
+        return owed_to_others(cand, rows, q, accel_max, accel_min, towards, tolerance)
 
     def _remember(self, t: float, e, ask: np.ndarray, c1_side: np.ndarray, c1_uid: np.ndarray, cand: Candidates,
                   legal: np.ndarray, rho: np.ndarray) -> None:
+        """Open a window for every asked episode with a legal candidate (and its state, the first time)."""
+        some = np.flatnonzero(legal.any(axis=1))
+        if not some.size:
+            return
         serial = e.serial[ask]
-        known = _lookup(self._asked.serial, serial)[0]
+        known = _lookup(self._asked.serial, serial[some])[0]
         if not known.all():
-            new = np.flatnonzero(~known)
+            new = some[~known]
             fresh = _Asked.empty(new.size)
             fresh.serial, fresh.c1_side = serial[new], c1_side[new]
             fresh.c1_role = e.roles[ask[new], c1_side[new]]
             self._asked.extend(fresh)
             self._asked = self._asked.take(np.argsort(self._asked.serial, kind="stable"))
-        some = np.flatnonzero(legal.any(axis=1))
-        if some.size:
-            n = some.size
-            self._windows.extend(_Windows(
-                serial=serial[some], uid=c1_uid[some], t0=np.full(n, t), t_end=t + rho[some], v0=cand.v[some, 0, 0],
-                u0=cand.u[some, 0, 0], cap=cand.speed_cap[some], half_lane=cand.half_lane[some],
-                back=cand.lat_back[some], lon=cand.lon_accel[some], lat=cand.lat_accel[some], legal=legal[some],
-                excess=np.full((n, N_CANDIDATES), -np.inf), steps=np.zeros(n, np.int64), lon_sum=np.zeros(n)))
+        n = some.size
+        self._windows.extend(_Windows(
+            serial=serial[some], uid=c1_uid[some], t0=np.full(n, t), t_end=t + rho[some], v0=cand.v[some, 0, 0],
+            u0=cand.u[some, 0, 0], cap=cand.speed_cap[some], half_lane=cand.half_lane[some],
+            back=cand.lat_back[some], lon=cand.lon_accel[some], lat=cand.lat_accel[some], legal=legal[some],
+            excess=np.full((n, N_CANDIDATES), -np.inf), steps=np.zeros(n, np.int64), lon_sum=np.zeros(n)))
