@@ -4,11 +4,14 @@ Figures: what recording costs a run per step (the trajectory recorder, near the 
 auditor's step-by-step states of every episode) next to a step's simulation and audit; the size of view.html (every
 vehicle, and near the ego only, the default without --fcd); in headless Chromium: the time from navigation to the
 first frame drawn, and frames drawn per second while playing at 1x following the ego and with the whole network
-in view (with the median and 95th percentile of the script's time per frame).
-Targets (issue 51): loads in under 3 s, plays at 30 fps, the file under 20 MB.
+in view (with the median and 95th percentile of the script's time per frame, and the CPU time the browser's
+processes spent per frame drawn: user + system of every process under this one, from /proc, which a loaded machine
+moves far less than it moves the frame rate).
+Targets (issue 51): loads in under 3 s, plays at 30 fps in both views, the file under 20 MB.
 """
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -73,6 +76,27 @@ def record_run(folder: Path) -> dict:
             / (mean["step"] + mean["audit"])}
 
 
+def browser_cpu_s() -> float:
+    """[s] user + system CPU time so far of every process below this one (the browser, its driver), 0 without /proc."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = entry.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # it ended meanwhile
+            continue
+        children.setdefault(int(fields[1]), []).append(int(entry.parent.name))
+    total, todo = 0, list(children.get(os.getpid(), []))
+    while todo:
+        pid = todo.pop()
+        todo += children.get(pid, [])
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += int(fields[11]) + int(fields[12])  # utime, stime [clock ticks]
+    return total / os.sysconf("SC_CLK_TCK")
+
+
 def measure_page(browser, page_file: Path) -> dict:
     started = time.perf_counter()
     page = open_view(browser, page_file)
@@ -82,14 +106,14 @@ def measure_page(browser, page_file: Path) -> dict:
     for name, setup in (("follow_ego", "sumoRssViewer.follow('ego'); sumoRssViewer.seek(1200)"),
                         ("whole_network", "document.getElementById('fit').click(); sumoRssViewer.seek(1200)")):
         page.evaluate(setup)
-        frames = page.evaluate("sumoRssViewer.stats.frames")
+        frames, cpu = page.evaluate("sumoRssViewer.stats.frames"), browser_cpu_s()
         page.evaluate("sumoRssViewer.play(1)")
         page.wait_for_timeout(PLAY_S * 1000)
         page.evaluate("sumoRssViewer.pause()")
-        drawn = page.evaluate("sumoRssViewer.stats.frames") - frames
+        cpu, drawn = browser_cpu_s() - cpu, page.evaluate("sumoRssViewer.stats.frames") - frames
         ms = np.array(page.evaluate(f"sumoRssViewer.stats.renderMs.slice(-{drawn})"))
         figures[name] = {"fps": drawn / PLAY_S, "script_ms_median": float(np.median(ms)),
-                         "script_ms_p95": float(np.percentile(ms, 95))}
+                         "script_ms_p95": float(np.percentile(ms, 95)), "browser_cpu_ms_per_frame": cpu * 1e3 / drawn}
     page.close()
     return figures
 
@@ -109,8 +133,8 @@ def main() -> None:
         if reason is None:
             with headless_chromium() as browser:
                 page = figures["browser_all"] = measure_page(browser, folder / "all" / "view.html")
-            figures["targets"].update(load_under_3_s=page["load_s"] < 3.0,
-                                      plays_at_30_fps=page["follow_ego"]["fps"] >= 30.0)
+            slowest = min(page["follow_ego"]["fps"], page["whole_network"]["fps"])
+            figures["targets"].update(load_under_3_s=page["load_s"] < 3.0, plays_at_30_fps=slowest >= 30.0)
         else:
             figures["browser_all"] = f"not measured: {reason}"
     record("viewer", figures, options)

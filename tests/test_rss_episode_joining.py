@@ -10,8 +10,10 @@ from __future__ import annotations
 import math
 
 import libsumo
+import numpy as np
 import pytest
 
+from sumo_rss.rss.episode_log import EpisodeParts
 from sumo_runs import CAR, DATA, STEP_S, hold_speed, run_sumo
 
 SPEED, SWING, PERIOD = 25.0, 0.2, 1.6  # [m/s], [m/s], [s]
@@ -69,3 +71,49 @@ def test_joining_never_changes_who_is_responsible(hovering, tmp_path):
     assert len(joined.episodes) == 1 and joined.episodes.iloc[0].responsible == "b"
     keys = set(joined.violations.episode_key)
     assert keys == {"front|rear|1"} and len(joined.violations) == len(raw.violations)
+
+
+def _part(parts: EpisodeParts, *, responsible, excusable, entered, stays_out, rows=()) -> None:
+    parts.add(list(rows), np.array(responsible), np.array(excusable), np.array(entered), np.array(stays_out))
+
+
+def test_a_yielding_car_that_stands_short_at_the_end_of_a_joined_episode_complied_in_every_part():
+    """MoST 249|343 at 223.9-230.5 s: car a (yielding, column 0) brakes 0.6 s late in the first part, which ends
+    safe while it is still fast; the pair is dangerous again within ρ twice, and a stands 4.7 m short of the
+    conflict area at the end. Over the joined episode it never entered: the first part's blame and violation go,
+    car b's blame of the second part stays."""
+    late = {"constraint": "lon-brake-after-response-time", "vehicle_id": "a"}
+    rear = {"constraint": "lon-brake-after-response-time", "vehicle_id": "b"}
+    parts = EpisodeParts()
+    _part(parts, responsible=[True, False], excusable=[True, False], entered=[False, False],
+          stays_out=[False, False], rows=[(0, late)])
+    assert parts.responsible.tolist() == [True, False] and parts.violations() == [late]
+    _part(parts, responsible=[False, True], excusable=[False, False], entered=[False, False],
+          stays_out=[True, False], rows=[(1, rear)])  # a is the front car here: nothing is excusable
+    _part(parts, responsible=[False, False], excusable=[True, False], entered=[False, False],
+          stays_out=[True, False])
+    assert parts.responsible.tolist() == [False, True] and parts.violations() == [rear]
+
+
+def test_a_yielding_car_that_enters_in_a_later_part_keeps_the_blame_of_every_part():
+    """The same car a enters the conflict area in the last part: it did not stay out, so the first part's
+    violation and blame stand even though it was braking hard enough to stop at the end of the first part."""
+    late = {"constraint": "lon-brake-after-response-time", "vehicle_id": "a"}
+    parts = EpisodeParts()
+    _part(parts, responsible=[True, False], excusable=[True, False], entered=[False, False],
+          stays_out=[True, False], rows=[(0, late)])
+    assert parts.responsible.tolist() == [False, False] and parts.violations() == []  # as a single episode
+    _part(parts, responsible=[False, False], excusable=[True, False], entered=[True, False],
+          stays_out=[False, False])
+    assert parts.responsible.tolist() == [True, False] and parts.violations() == [late]
+
+
+def test_blame_from_a_part_where_the_car_did_not_owe_the_junction_response_is_never_cleared():
+    """A lateral or road-part violation is not what the stay-out rule excuses: it stays with the car."""
+    lateral = {"constraint": "lat-speed-envelope", "vehicle_id": "a"}
+    parts = EpisodeParts()
+    _part(parts, responsible=[True, False], excusable=[False, False], entered=[False, False],
+          stays_out=[False, False], rows=[(0, lateral)])
+    _part(parts, responsible=[False, False], excusable=[True, False], entered=[False, False],
+          stays_out=[True, False])
+    assert parts.responsible.tolist() == [True, False] and parts.violations() == [lateral]

@@ -41,36 +41,43 @@ def page(browser, merge_view):
     page.close()
 
 
+def scene_pixel(page, x: float, y: float) -> tuple[int, ...]:
+    """The scene canvas's colour at world point (x, y) [m], placed on screen from the view's centre and scale alone
+    (empty outside the canvas)."""
+    view = page.evaluate("sumoRssViewer.state()")["view"]
+    width, height, ratio = page.evaluate("(() => { const c = document.getElementById('scene'); "
+                                         "return [c.clientWidth, c.clientHeight, devicePixelRatio]; })()")
+    origin = page.evaluate("sumoRssViewer.header.origin")
+    sx = (x - origin[0] - view["cx"]) * view["scale"] + width / 2
+    sy = height / 2 - (y - origin[1] - view["cy"]) * view["scale"]
+    if not (0 <= sx < width and 0 <= sy < height):
+        return ()
+    return tuple(page.evaluate("([x, y]) => Array.from(document.getElementById('scene').getContext('2d')"
+                               ".getImageData(x, y, 1, 1).data.slice(0, 3))", [int(sx * ratio), int(sy * ratio)]))
+
+
+def busiest_step(run):
+    """The trajectories, the step with the most vehicles recorded near the ego, its rows and the ego's row."""
+    t = Trajectories.read(run / "trajectories.npz")
+    step = int(np.argmax(np.diff(t.step_start)))
+    rows = np.arange(t.step_start[step], t.step_start[step + 1])
+    egos = rows[t.vclass[t.vehicle[rows]] == "ego"]
+    assert len(rows) >= 8 and len(egos) == 1
+    return t, step, rows, int(egos[0])
+
+
 def test_the_page_loads_without_errors_and_draws_every_vehicle_where_it_was(page, merge_view):
     assert page.errors == []
-    t = Trajectories.read(merge_view / "trajectories.npz")
-    counts = np.diff(t.step_start)
-    step = int(np.argmax(counts))  # the busiest step near the ego
-    rows = np.arange(t.step_start[step], t.step_start[step + 1])
-    assert len(rows) >= 8 and "ego" in t.vclass[t.vehicle[rows]]
-    ego = rows[t.vclass[t.vehicle[rows]] == "ego"][0]
+    t, step, rows, ego = busiest_step(merge_view)
     page.evaluate("([x, y, k]) => { sumoRssViewer.setView(x, y, 3); sumoRssViewer.seek(k); }",
                   [float(t.x[ego]), float(t.y[ego]), step])
     view = page.evaluate("sumoRssViewer.state()")
     assert view["step"] == step and view["time"] == pytest.approx(t.time[step])
-    width, height, ratio = page.evaluate("(() => { const c = document.getElementById('scene'); "
-                                         "return [c.clientWidth, c.clientHeight, devicePixelRatio]; })()")
-    origin = page.evaluate("sumoRssViewer.header.origin")
-
-    def pixel(x: float, y: float) -> tuple[int, ...]:
-        """The canvas's colour at world point (x, y), placed on screen from the view's centre and scale alone."""
-        sx = (x - origin[0] - view["view"]["cx"]) * view["view"]["scale"] + width / 2
-        sy = height / 2 - (y - origin[1] - view["view"]["cy"]) * view["view"]["scale"]
-        if not (0 <= sx < width and 0 <= sy < height):
-            return ()
-        return tuple(page.evaluate("([x, y]) => Array.from(document.getElementById('scene').getContext('2d')"
-                                   ".getImageData(x, y, 1, 1).data.slice(0, 3))",
-                                   [int(sx * ratio), int(sy * ratio)]))
-
     seen = []
     for r in rows:  # each vehicle's centre: half its length behind its front bumper
         length = t.length[t.vehicle[r]]
-        colour = pixel(t.x[r] - length / 2 * np.cos(t.heading[r]), t.y[r] - length / 2 * np.sin(t.heading[r]))
+        colour = scene_pixel(page, t.x[r] - length / 2 * np.cos(t.heading[r]),
+                             t.y[r] - length / 2 * np.sin(t.heading[r]))
         if colour:
             seen.append((colour, EGO if r == ego else CAR))
     assert len(seen) >= 5
@@ -78,7 +85,27 @@ def test_the_page_loads_without_errors_and_draws_every_vehicle_where_it_was(page
     assert sum(colour == expected for colour, expected in seen) >= 0.9 * len(seen)
     # 40 m beside the ego, off the road: the ground.
     heading = t.heading[ego]
-    assert pixel(t.x[ego] - 40 * np.sin(heading) - 2, t.y[ego] + 40 * np.cos(heading)) in (GROUND, ())
+    assert scene_pixel(page, t.x[ego] - 40 * np.sin(heading) - 2, t.y[ego] + 40 * np.cos(heading)) in (GROUND, ())
+
+
+def test_a_vehicle_whose_front_bumper_is_out_of_view_is_still_drawn(page, merge_view):
+    """The frame leaves out what is outside the view: not a car whose front is 2 m beyond the canvas's edge while
+    its rear half is inside (at 10 px/m, 2 m is more than the 10 px the view is grown by for lines)."""
+    t, step, _, ego = busiest_step(merge_view)
+    scale = 10.0
+    width, height = page.evaluate("[document.getElementById('scene').clientWidth, "
+                                  "document.getElementById('scene').clientHeight]")
+    u = np.array([np.cos(t.heading[ego]), np.sin(t.heading[ego])])
+    front = np.array([t.x[ego], t.y[ego]])
+    # From the view's centre along the heading, the canvas's edge is `to_edge` metres away.
+    to_edge = min(half / scale / abs(c) for half, c in ((width / 2, u[0]), (height / 2, u[1])) if abs(c) > 1e-9)
+    centre = front - u * (to_edge + 2.0)
+    page.evaluate("([x, y, s, k]) => { sumoRssViewer.setView(x, y, s); sumoRssViewer.seek(k); }",
+                  [float(centre[0]), float(centre[1]), scale, step])
+    assert scene_pixel(page, *front) == ()  # the front bumper is off the canvas
+    rear_half = front - u * 0.75 * t.length[t.vehicle[ego]]
+    assert scene_pixel(page, *rear_half) == EGO
+    assert page.errors == []
 
 
 def test_clicking_an_episode_in_the_sorted_list_jumps_to_its_t_b(page, merge_view):

@@ -54,14 +54,13 @@ class _Asked(_Soa):
     fail_actual: np.ndarray  # and the largest acceleration mismatch beyond the tolerance [m/s²]
     fail_excess: np.ndarray
     expiry: np.ndarray  # [s] closed: forgotten after this (inf while open)
-    emitted: np.ndarray  # its evasive-effort violation was written
 
     @classmethod
     def empty(cls, n: int = 0) -> _Asked:
         nan = np.full(n, np.nan)
         return cls(np.zeros(n, np.int64), np.zeros(n, np.int8), np.zeros(n, object), np.zeros((n, 2), bool),
                    np.zeros(n, bool), nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(), nan.copy(),
-                   np.full(n, np.inf), np.zeros(n, bool))
+                   np.full(n, np.inf))
 
 
 @dataclass
@@ -150,7 +149,7 @@ class Rule5Tracker:
 
     def close(self, record: dict, joinable: bool, window: float, time: float) -> list[dict]:
         """Fill ``record``'s rule-5 fields (a closed, possibly joined, episode) and return its evasive-effort
-        violation row (none, or one the first time it is found)."""
+        violation row (none, or one)."""
         serial = np.int64(record["serial"])
         self._finish(self._windows.serial == serial)
         found, pos = _lookup(self._asked.serial, np.array([serial]))
@@ -167,8 +166,7 @@ class Rule5Tracker:
         record.update(evasive_checked=asked, evasive_last_s=float(s.last_legal[k]) if asked and legal else np.nan,
                       rule5_responsible=c1 if failed else "")
         rows = []
-        if failed and not s.emitted[k]:
-            s.emitted[k] = True
+        if failed:
             rows.append({"run_id": record["run_id"], "episode_key": record["episode_key"], "vehicle_id": c1,
                          "vehicle_class": record["class_a"] if c1_side == 0 else record["class_b"],
                          "role": s.c1_role[k], "constraint": EVASIVE_CONSTRAINT, "bound": float(s.fail_bound[k]),

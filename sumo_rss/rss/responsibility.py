@@ -17,8 +17,8 @@ import pandas as pd
 from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
-from .episode_log import EpisodeLog, join_records
-from .records import RULE5_UNCHECKED, VIOLATION_COLUMNS, RecordTable
+from .episode_log import EpisodeLog, EpisodeParts, join_records
+from .records import EVASIVE_CONSTRAINT, RULE5_UNCHECKED
 from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
@@ -126,9 +126,9 @@ class ResponsibilityTracker:
         self._on_close = on_close or (lambda record, joinable, window, time: [])
         self.stay_out_complies = stay_out_complies
         self._log = EpisodeLog(join)
-        self._violations = RecordTable(VIOLATION_COLUMNS)
-        self._episode_violations: dict[int, list[dict]] = {}  # pair key → rows of its open episode, written at its end
-        self._continued: dict[int, dict] = {}  # pair key → record of the episode its open one continues
+        # pair key → (car, row) of its open episode's violations, judged at its end
+        self._episode_violations: dict[int, list[tuple[int, dict]]] = {}
+        self._continued: dict[int, tuple[dict, EpisodeParts]] = {}  # pair key → the episode its open one continues
         self._open = OpenEpisodes()
         self._prev_keys = np.zeros(0, dtype=np.int64)
         self._prev_rules = np.zeros(0, dtype=np.int8)
@@ -221,12 +221,13 @@ class ResponsibilityTracker:
             if hit.any():
                 records.append(self._close(hit, time, collision=(collider, victim))[0])
                 continue
-            record = self._log.collide(pair_key, time)
-            if record is not None:
+            held = self._log.collide(pair_key, time)
+            if held is not None:
+                record, parts = held
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
-                self._violations.extend(self._on_close(record, False, 0.0, time))
-                self._log.close(pair_key, record, time, 0.0, joinable=False)
+                self._judge_rule5(record, parts, False, 0.0, time)
+                self._log.close(pair_key, record, parts, time, 0.0, joinable=False)
                 records.append(record)
         self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
         return records
@@ -243,7 +244,7 @@ class ResponsibilityTracker:
 
     def violations(self) -> pd.DataFrame:
         """The finished violations of the closed episodes so far, in the order they finished (VIOLATION_COLUMNS)."""
-        return self._violations.frame()
+        return self._log.violation_frame()
 
     # -----------------------------------------------------------------------------------------------------
     def _episode_key(self, i: int) -> str:
@@ -278,10 +279,10 @@ class ResponsibilityTracker:
         n = len(keys)
         serials = np.arange(self._next_serial, self._next_serial + n, dtype=np.int64)
         for r, k in enumerate(keys.tolist()):
-            record = self._log.resume(k, step.time)
-            if record is not None:  # the pair's episode that ended within ρ goes on (its serial too)
-                self._continued[k] = record
-                serials[r] = record["serial"]
+            held = self._log.resume(k, step.time)
+            if held is not None:  # the pair's episode that ended within ρ goes on (its serial too)
+                self._continued[k] = held
+                serials[r] = held[0]["serial"]
             else:
                 self._episode_count[k] = self._episode_count.get(k, 0) + 1
         fresh = OpenEpisodes(
@@ -407,12 +408,12 @@ class ResponsibilityTracker:
         for i, car, c in zip(*np.nonzero(mask)):
             vid = e.a_id[i] if car == 0 else e.b_id[i]
             vclass = e.a_class[i] if car == 0 else e.b_class[i]
-            self._episode_violations.setdefault(int(e.keys[i]), []).append({
+            self._episode_violations.setdefault(int(e.keys[i]), []).append((int(car), {
                 "run_id": self.run_id, "episode_key": self._episode_key(i), "vehicle_id": vid,
                 "vehicle_class": vclass, "role": e.roles[i, car], "constraint": CONSTRAINTS[c].value,
                 "bound": float(e.v_bound[i, car, c]), "worst_actual": float(e.v_worst[i, car, c]),
                 "excess": float(e.v_excess[i, car, c]), "t_start_s": float(e.v_start[i, car, c]),
-                "t_end_s": float(e.v_last[i, car, c])})
+                "t_end_s": float(e.v_last[i, car, c])}))
         e.v_excess = np.where(mask, -np.inf, e.v_excess)
 
     def _close(self, mask: np.ndarray, time: float, *, collision: tuple[str, str] | None = None,
@@ -422,19 +423,19 @@ class ResponsibilityTracker:
         e = self._open
         self._emit_violations(e.active & mask[:, None, None])
         # A car owing braking at a junction that stops before the conflict area complied: it never entered the area
-        # while the episode lasted, and stood still short of it or, when the episode ended, was braking hard enough
-        # to stop before it.
-        excused = e.must_brake & ~e.entered & (e.stood_short | e.stopping) & \
-            (e.kind >= FIRST_INTERSECTION_CODE)[:, None] & self.stay_out_complies
+        # while the (joined) episode lasted, and stood still short of it or, when the episode ended, was braking hard
+        # enough to stop before it (EpisodeParts).
+        junction = (e.kind >= FIRST_INTERSECTION_CODE)[:, None] & self.stay_out_complies
+        excusable = e.must_brake & junction
+        stays_out = (e.stood_short | e.stopping) & junction
         records = []
         for i in np.flatnonzero(mask):
             key = int(e.keys[i])
             t_end = float(e.t_last[i]) if end_of_data else time
-            resp = e.responsible[i] & ~excused[i]
-            cleared = {e.a_id[i], e.b_id[i]} if excused[i].all() else {e.a_id[i]} if excused[i, 0] else \
-                {e.b_id[i]} if excused[i, 1] else set()
-            self._violations.extend(row for row in self._episode_violations.pop(key, ())
-                                    if row["vehicle_id"] not in cleared)
+            first, parts = self._continued.pop(key, (None, EpisodeParts()))
+            parts.add(self._episode_violations.pop(key, []), e.responsible[i], excusable[i], e.entered[i],
+                      stays_out[i])
+            resp = parts.responsible
             episode_key = self._episode_key(i)
             self.serial_keys[int(e.serial[i])] = episode_key
             record = {
@@ -449,14 +450,22 @@ class ResponsibilityTracker:
                 "collision": collision is not None, "collider": collision[0] if collision else "",
                 "victim": collision[1] if collision else "", "ended_by": "collision" if collision else
                 "end-of-data" if end_of_data else "safe", **RULE5_UNCHECKED}
-            if key in self._continued:
-                record = join_records(self._continued.pop(key), record)
+            if first is not None:
+                record = join_records(first, record)
             joinable = collision is None and not end_of_data
-            self._violations.extend(self._on_close(record, joinable, float(e.window[i]), time))
+            self._judge_rule5(record, parts, joinable, float(e.window[i]), time)
             records.append(record)
-            self._log.close(key, record, time, float(e.window[i]), joinable=joinable)
+            self._log.close(key, record, parts, time, float(e.window[i]), joinable=joinable)
         self._open = e.take(np.flatnonzero(~mask))
         return records
+
+
+    def _judge_rule5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
+        """Rule 5's verdict of a closed (joined, collided) episode (``on_close``): its record's fields, and its
+        evasive-effort row in place of an earlier part's."""
+        rows = self._on_close(record, joinable, window, time)
+        parts.rows[:] = [held for held in parts.rows if held[2]["constraint"] != EVASIVE_CONSTRAINT] + \
+            [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
 
 
 def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray

@@ -226,15 +226,30 @@ function openEpisodes(t) {  // episodes whose danger covers t (episodes.csv is s
   return open;
 }
 
-function drawVehicles(f, open) {
+// The world rectangle in view [m], grown by the longest vehicle and 10 px: a vehicle whose front bumper is outside it,
+// or a danger line with both ends beyond one of its sides, is not drawn (following a car, most of them are).
+const LONGEST = A.length.reduce((m, l) => Math.max(m, l), 0);
+function viewBox() {
+  const [w, h] = cssSize(), m = LONGEST + 10 / view.scale, hw = w / 2 / view.scale + m, hh = h / 2 / view.scale + m;
+  return [view.cx - hw, view.cy - hh, view.cx + hw, view.cy + hh];
+}
+const inBox = (box, x, y) => x >= box[0] && x <= box[2] && y >= box[1] && y <= box[3];
+
+function drawVehicles(f, open, box) {
   const cars = new Path2D(), egos = new Path2D(), fronts = new Path2D(), danger = new Path2D();
   for (let i = 0; i < f.n; i++) {
+    if (!inBox(box, f.x[i], f.y[i])) continue;
     const v = f.veh[i], len = A.length[v], c = Math.cos(f.h[i]), s = Math.sin(f.h[i]), w = A.width[v] / 2;
     addBox(veh.vclass[v] === egoClass ? egos : cars, f, i);
     const wx = f.x[i] - 0.25 * len * c, wy = f.y[i] - 0.25 * len * s;  // windscreen: which way it faces
     fronts.moveTo(wx - w * s, wy + w * c); fronts.lineTo(wx + w * s, wy - w * c);
   }
-  for (const e of open) for (const v of [ep.a[e], ep.b[e]]) if (v >= 0 && slotOf[v] >= 0) addBox(danger, f, slotOf[v], 0.25);
+  for (const e of open) {
+    for (const v of [ep.a[e], ep.b[e]]) {
+      const i = v >= 0 ? slotOf[v] : -1;
+      if (i >= 0 && inBox(box, f.x[i], f.y[i])) addBox(danger, f, i, 0.25);
+    }
+  }
   const px = 1 / view.scale;
   ctx.lineWidth = 1.5 * px; ctx.strokeStyle = COLOUR.amber; ctx.stroke(danger);
   ctx.fillStyle = COLOUR.car; ctx.fill(cars);
@@ -251,13 +266,15 @@ function drawVehicles(f, open) {
 
 // Each pair of an open episode: a line between the cars' centres, each half coloured by its car (red: it has
 // broken its owed response in this episode by now; thicker: it is breaking it now), the selected pair underlaid.
-function drawDangerLines(f, open, t) {
+function drawDangerLines(f, open, t, box) {
   const px = 1 / view.scale, halves = [new Path2D(), new Path2D(), new Path2D(), new Path2D()];
   const selected = new Path2D();
   for (const e of open) {
     const a = slotOf[ep.a[e]], b = slotOf[ep.b[e]];
     if (ep.a[e] < 0 || ep.b[e] < 0 || a < 0 || b < 0) continue;
     const ca = centre(f, a), cb = centre(f, b), mid = [(ca[0] + cb[0]) / 2, (ca[1] + cb[1]) / 2];
+    if (Math.max(ca[0], cb[0]) < box[0] || Math.min(ca[0], cb[0]) > box[2] || Math.max(ca[1], cb[1]) < box[1] ||
+      Math.min(ca[1], cb[1]) > box[3]) continue;
     if (e === state.episode) { selected.moveTo(...ca); selected.lineTo(...cb); }
     [[ca, 0], [cb, 1]].forEach(([end, side]) => {
       const now = violating[e].some(([s, t0, t1]) => s === side && t0 <= t + 1e-9 && t <= t1 + 1e-9);
@@ -329,8 +346,9 @@ function render() {
   ctx.setTransform(s, 0, 0, -s, scene.width / 2 - view.cx * s, scene.height / 2 + view.cy * s);
   drawSignals(state.time);
   const open = openEpisodes(state.time);
-  drawDangerLines(frame, open, state.time);
-  drawVehicles(frame, open);
+  const box = viewBox();
+  drawDangerLines(frame, open, state.time, box);
+  drawVehicles(frame, open, box);
   drawCollisions(state.time);
   drawLabels(frame);
   if (state.step !== state.shownStep) { state.shownStep = state.step; showStep(); }
@@ -521,10 +539,9 @@ function stateRow(e, t) {  // the row of episode e's states at time t (-1: none)
 }
 
 function showReadout() {  // the selected episode's values at the current step (td[data-field] for scripts)
-  const table = $("readout"), e = state.episode;
-  const r = e < 0 ? -1 : stateRow(e, time[state.step]);
+  const e = state.episode, r = e < 0 ? -1 : stateRow(e, time[state.step]);
   if (r < 0) {
-    table.innerHTML = e < 0 ? "" : `<tr><td>at ${time[state.step].toFixed(1)} s the pair is not in this episode</td></tr>`;
+    setReadout(e < 0 ? "" : `<tr><td>at ${time[state.step].toFixed(1)} s the pair is not in this episode</td></tr>`);
     return;
   }
   const fmt = (v) => (Number.isFinite(v) ? v.toFixed(2) : "–");
@@ -542,7 +559,12 @@ function showReadout() {  // the selected episode's values at the current step (
     rows.push(row(`${n}: lateral speed, ≤ [m/s]`, [`lat_speed_${n}`, car("lat_speed", side)],
       [`lat_speed_max_${n}`, car("lat_speed_max", side)]));
   }
-  table.innerHTML = rows.join("");
+  setReadout(rows.join(""));
+}
+
+let readoutHtml = "";
+function setReadout(html) {  // the same rows again (no episode selected) cost no layout
+  if (html !== readoutHtml) { readoutHtml = html; $("readout").innerHTML = html; }
 }
 
 // ---- selection and episode list ---------------------------------------------------------------------------------
