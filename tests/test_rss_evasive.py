@@ -9,7 +9,7 @@ import pytest
 from conftest import NETWORKS
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
-from sumo_rss.rss.evasive import candidate_names, lateral_manoeuvre, naive
+from sumo_rss.rss.evasive import lateral_manoeuvre, naive
 from sumo_rss.rss.params import EvasiveParams, evasive_params
 from sumo_rss.sim.snapshot import WorldSnapshot
 
@@ -158,8 +158,3 @@ def test_a_car_cut_into_could_not_have_evaded_into_an_occupied_lane(net):
     assert set(result.episodes.rule5_responsible) == {""}
     assert "evasive-effort" not in set(result.violations.constraint)
     assert result.collisions.could_have_avoided.tolist() == [""]
-
-
-def test_the_candidate_names():
-    assert candidate_names()[:3] == ("-b_max/-a_lat", "-b_max/0", "-b_max/+a_lat")
-    assert len(candidate_names()) == 12

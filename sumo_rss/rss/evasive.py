@@ -28,12 +28,6 @@ OPPOSITE_CODE = 1  # SITUATION_CODES index of opposite-direction pairs
 BAND_EPS = 1e-6  # [m]
 
 
-def candidate_names() -> tuple[str, ...]:
-    """'lon/lat' name of every candidate, e.g. '-b_max/+a_lat'."""
-    lat = {-1.0: "-a_lat", 0.0: "0", 1.0: "+a_lat"}
-    return tuple(f"{lon}/{lat[y]}" for lon in LON_CHOICES for y in LAT_CHOICES)
-
-
 def ramp(v0: Any, a: Any, v_end: Any, t: Any) -> tuple[np.ndarray, np.ndarray]:
     """(distance [m], speed [m/s]) after ``t`` [s] of a motion along one axis that starts at ``v0`` with constant
     acceleration ``a`` until its speed reaches ``v_end`` and then holds it (a = 0: v0 throughout)."""
@@ -271,10 +265,10 @@ def on_drivable_lanes(c: Candidates, offset: np.ndarray, half_lat: np.ndarray, r
 
 def owed_to_others(c: Candidates, cars: np.ndarray, q: np.ndarray, accel_max: np.ndarray, accel_min: np.ndarray,
                    lat_owed_towards: np.ndarray, tolerance: float) -> np.ndarray:
-    """[len(cars), 12] legality (a) of the candidates of ``cars`` (rows of ``c``): at t₀ each candidate satisfies the proper responses the car owes in its other open
-    episodes (rows r of car cars[q[r]]): a ≤ ``accel_max`` and a ≥ ``accel_min`` (NaN: no bound) within ``tolerance``
-    [m/s²], and no lateral acceleration towards a road user it owes a lateral response (``lat_owed_towards``
-    [r]: +1 that one is on its left, −1 on its right, 0 none)."""
+    """[len(cars), 12] legality (a) of the candidates of ``cars`` (rows of ``c``): at t₀ each candidate satisfies the
+    proper responses the car owes in its other open episodes (rows r of car cars[q[r]]): a ≤ ``accel_max`` and
+    a ≥ ``accel_min`` (NaN: no bound) within ``tolerance`` [m/s²], and no lateral acceleration towards a road user
+    it owes a lateral response (``lat_owed_towards`` [r]: +1 that one is on its left, −1 on its right, 0 none)."""
     legal = np.ones((len(cars), c.lon_accel.shape[1]), dtype=bool)
     if q.size:
         a = c.initial_lon_accel[cars[q]]

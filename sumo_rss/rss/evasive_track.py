@@ -17,6 +17,7 @@ from .evasive import (N_CANDIDATES, OPPOSITE_CODE, Candidates, PairRows, candida
                       dangerous_at_end, grid, on_drivable_lanes, owed_to_others)
 from .params import EvasiveParams, RssParamArrays
 from .records import EVASIVE_CONSTRAINT
+from .responsibility import ResponsibilityTracker, _lookup
 from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES, PairSituations, VehicleFrame
 
 TIME_EPS = 1e-9  # [s]
@@ -97,13 +98,6 @@ def shortfall(actual: np.ndarray, planned: np.ndarray) -> np.ndarray:
     return np.where(planned < 0.0, actual - planned, np.where(planned > 0.0, planned - actual, np.abs(actual)))
 
 
-def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    if len(sorted_keys) == 0:
-        return np.zeros(len(query), dtype=bool), np.zeros(len(query), dtype=int)
-    pos = np.clip(np.searchsorted(sorted_keys, query), 0, len(sorted_keys) - 1)
-    return sorted_keys[pos] == query, pos
-
-
 def _expand(values: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(query index, index into ``values``) of every element of ``values`` equal to each query (any order)."""
     order = np.argsort(values, kind="stable")
@@ -130,7 +124,7 @@ class Rule5Tracker:
 
     # ---------------------------------------------------------------------------------------------------------
     def step(self, snapshot: WorldSnapshot, uids: np.ndarray, frame: VehicleFrame, situations: PairSituations,
-             keys: np.ndarray, tracker, params: RssParamArrays, tolerance: float) -> None:
+             keys: np.ndarray, tracker: ResponsibilityTracker, params: RssParamArrays, tolerance: float) -> None:
         """Judge step ``snapshot.time``: match the open windows with the cars' accelerations, then ask the open
         episodes (``tracker``'s, after its step) with the pairs' ``situations`` (``keys`` per row)."""
         t = snapshot.time
