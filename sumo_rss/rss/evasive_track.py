@@ -83,12 +83,13 @@ class _Windows(_Soa):
     excess: np.ndarray  # [w, 12] largest |actual − planned| acceleration minus the tolerance so far [m/s²]
     steps: np.ndarray  # observed steps
     lon_sum: np.ndarray  # sum of c₁'s longitudinal accelerations over them [m/s²]
+    folded: np.ndarray  # its episode closed: already folded into it
 
     @classmethod
     def empty(cls) -> _Windows:
         z, zc = np.zeros(0), np.zeros((0, N_CANDIDATES))
         return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z, z, z, z, z, zc, zc,
-                   np.zeros((0, N_CANDIDATES), bool), zc, np.zeros(0, np.int64), z)
+                   np.zeros((0, N_CANDIDATES), bool), zc, np.zeros(0, np.int64), z, np.zeros(0, bool))
 
 
 def shortfall(actual: np.ndarray, planned: np.ndarray) -> np.ndarray:
@@ -145,7 +146,10 @@ class Rule5Tracker:
         """Fill ``record``'s rule-5 fields (a closed, possibly joined, episode) and return its evasive-effort
         violation row (none, or one)."""
         serial = np.int64(record["serial"])
-        self._finish(self._windows.serial == serial)
+        w = self._windows
+        ended = np.flatnonzero((w.serial == serial) & ~w.folded)  # dropped at the next step (one copy per step)
+        self._fold(w.take(ended))
+        w.folded[ended] = True
         found, pos = _lookup(self._asked.serial, np.array([serial]))
         k = int(pos[0]) if found[0] else None
         sides = {"a": 0, "b": 1}
@@ -179,7 +183,7 @@ class Rule5Tracker:
             return
         present, row = _lookup(np.sort(uids), w.uid)
         row = np.argsort(uids)[row]
-        live = np.flatnonzero(present & (w.t0 < t - TIME_EPS))
+        live = np.flatnonzero(present & (w.t0 < t - TIME_EPS) & ~w.folded)
         if live.size:
             tau = (t - w.t0[live])[:, None, None] + np.array([-dt, 0.0])
             _, v, _, u = candidate_motion(w.v0[live], w.u0[live], w.lon[live], w.lat[live], w.cap[live],
@@ -194,11 +198,15 @@ class Rule5Tracker:
         self._finish(~present)  # c₁ left the data: its windows end where its data ends
 
     def _finish(self, mask: np.ndarray) -> None:
-        """Fold the windows ``mask`` into their episodes and drop them."""
-        if not np.any(mask):
+        """Fold the windows ``mask`` into their episodes and drop them (with those folded at a close)."""
+        if not np.any(mask) and not self._windows.folded.any():
             return
-        w = self._windows.take(np.flatnonzero(mask))
-        self._windows = self._windows.take(np.flatnonzero(~mask))
+        w = self._windows.take(np.flatnonzero(mask & ~self._windows.folded))
+        self._windows = self._windows.take(np.flatnonzero(~mask & ~self._windows.folded))
+        self._fold(w)
+
+    def _fold(self, w: _Windows) -> None:
+        """Fold the windows ``w`` into their episodes."""
         judged = w.steps > 0  # a manoeuvre found at the last observed step cannot be judged
         w = w.take(np.flatnonzero(judged))
         found, k = _lookup(self._asked.serial, w.serial)
@@ -354,4 +362,5 @@ class Rule5Tracker:
             serial=serial[some], uid=c1_uid[some], t0=np.full(n, t), t_end=t + rho[some], v0=cand.v[some, 0, 0],
             u0=cand.u[some, 0, 0], cap=cand.speed_cap[some], half_lane=cand.half_lane[some],
             back=cand.lat_back[some], lon=cand.lon_accel[some], lat=cand.lat_accel[some], legal=legal[some],
-            excess=np.full((n, N_CANDIDATES), -np.inf), steps=np.zeros(n, np.int64), lon_sum=np.zeros(n)))
+            excess=np.full((n, N_CANDIDATES), -np.inf), steps=np.zeros(n, np.int64), lon_sum=np.zeros(n),
+            folded=np.zeros(n, bool)))
