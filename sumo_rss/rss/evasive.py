@@ -89,9 +89,10 @@ def lateral_manoeuvre(u0: Any, a: Any, half_lane: Any, a_back: Any, t: Any) -> t
 
 @dataclass(frozen=True, eq=False)
 class Candidates:
-    """Every candidate of the asked cars (rows q) on the time grid, in each car's own lane frame: x, v [q, 12, K+1]
-    (along), y, u [q, 12, K+1] (across, + = left); the commanded accelerations lon_accel, lat_accel [q, 12] and the
-    longitudinal one the car would apply at t₀ (0 where it stands, or is at its speed cap)."""
+    """Every candidate of the asked cars (rows q) on the time grid, in each car's own lane frame: x, v [q, 4, K+1]
+    along, per LON_CHOICES, and y, u [q, 3, K+1] across (+ = left), per LAT_CHOICES (candidate k combines lon k // 3
+    and lat k % 3); the commanded accelerations lon_accel, lat_accel [q, 12] and the longitudinal one the car would
+    apply at t₀ (0 where it stands, or is at its speed cap)."""
 
     times: np.ndarray  # [K+1] s since t₀
     x: np.ndarray
@@ -144,7 +145,10 @@ def candidates(v0: np.ndarray, u0: np.ndarray, p: RssParamArrays, speed_limit: n
     lon, lat = candidate_accels(p)
     cap = np.maximum(speed_limit, v0)
     back = np.maximum(p.lat_accel_max, 1e-9)
-    x, v, y, u = candidate_motion(v0, u0, lon, lat, cap, half_lane, back, times)
+    along = lon_commands(p)
+    x, v = ramp(v0[:, None, None], along[..., None], np.where(along < 0.0, 0.0, cap[:, None])[..., None], times)
+    y, u = lateral_manoeuvre(u0[:, None, None], lat[:, :len(LAT_CHOICES), None], half_lane[:, None, None],
+                             back[:, None, None], times)
     starts = np.where(lon < 0.0, v0[:, None] > 0.0, v0[:, None] < cap[:, None])
     return Candidates(times, x, v, y, u, lon, lat, np.where(starts, lon, 0.0), cap, half_lane, back)
 
@@ -189,22 +193,27 @@ class PairRows:
         return (np.abs(self.dx) - self.half_lon > lon) | (np.abs(self.dy) - self.half_lat - widen > lat)
 
 
+def per_candidate(along: np.ndarray, across: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[r, 12, ...] both parts of the candidates from their longitudinal [r, 4, ...] and lateral [r, 3, ...] ones."""
+    return np.repeat(along, len(LAT_CHOICES), axis=1), np.tile(across, (1, len(LON_CHOICES)) + (1,) * (across.ndim - 2))
+
+
 def _column(p: RssParamArrays) -> RssParamArrays:
     return RssParamArrays(*(getattr(p, name)[:, None] for name in PARAM_NAMES))
 
 
 def relative_motion(c: Candidates, rows: PairRows, k: slice = slice(None)
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(DX, DY, other's lon speed, its lat speed) [r, 12, K+1] (the grid times ``k``): the other's centre minus
-    c₁'s in the pair frame with c₁ on each candidate and the other on its naive prediction (lateral acceleration
-    0)."""
+    """(DX [r, 4, K+1] per longitudinal choice, DY [r, 3, K+1] per lateral one, other's lon speed, its lat speed
+    [r, 1, K+1]) at the grid times ``k``: the other's centre minus c₁'s in the pair frame with c₁ on each candidate
+    and the other on its naive prediction (lateral acceleration 0)."""
     t = c.times[k]
     x_o, v_o = naive(0.0, rows.v_o[:, None], rows.a_o[:, None], t)
     y_o = rows.u_o[:, None] * t
     d = rows.dir_o[:, None]
     dx = rows.dx[:, None, None] + (d * x_o)[:, None, :] - rows.dir_c1[:, None, None] * c.x[rows.q][..., k]
     dy = rows.dy[:, None, None] + (d * y_o)[:, None, :] - rows.dir_c1[:, None, None] * c.y[rows.q][..., k]
-    return dx, dy, np.broadcast_to(v_o[:, None, :], dx.shape), np.broadcast_to(rows.u_o[:, None, None], dx.shape)
+    return dx, dy, v_o[:, None, :], np.broadcast_to(rows.u_o[:, None, None], v_o[:, None, :].shape)
 
 
 def collides(c: Candidates, rows: PairRows) -> np.ndarray:
@@ -213,20 +222,21 @@ def collides(c: Candidates, rows: PairRows) -> np.ndarray:
     between two (the centre offset changes sign on one axis while they overlap on the other at both)."""
     dx, dy, _, _ = relative_motion(c, rows)
     widen = 0.5 * (rows.p_c1.lat_fluctuation_margin + rows.p_o.lat_fluctuation_margin)
-    lon = np.abs(dx) < rows.half_lon[:, None, None]
-    lat = np.abs(dy) < (rows.half_lat + widen)[:, None, None]
-    overlap = np.any(lon & lat, axis=2)
-    passes_lon = (np.sign(dx[..., 1:]) != np.sign(dx[..., :-1])) & lat[..., 1:] & lat[..., :-1]
-    passes_lat = (np.sign(dy[..., 1:]) != np.sign(dy[..., :-1])) & lon[..., 1:] & lon[..., :-1]
-    return overlap | np.any(passes_lon | passes_lat, axis=2)
+    lon = (np.abs(dx) < rows.half_lon[:, None, None])[:, :, None, :]  # [r, 4, 1, K+1]
+    lat = (np.abs(dy) < (rows.half_lat + widen)[:, None, None])[:, None, :, :]  # [r, 1, 3, K+1]
+    overlap = np.any(lon & lat, axis=3)
+    turns_lon = (np.sign(dx[..., 1:]) != np.sign(dx[..., :-1]))[:, :, None, :]
+    turns_lat = (np.sign(dy[..., 1:]) != np.sign(dy[..., :-1]))[:, None, :, :]
+    passes = (turns_lon & lat[..., 1:] & lat[..., :-1]) | (turns_lat & lon[..., 1:] & lon[..., :-1])
+    return (overlap | np.any(passes, axis=3)).reshape(len(rows.q), N_CANDIDATES)
 
 
 def dangerous_at_end(c: Candidates, rows: PairRows) -> np.ndarray:
     """[r, 12] whether the pair is dangerous (neither longitudinally nor laterally safe, rss.md §2) at t₀ + T with
     c₁ on each candidate and the other on its naive prediction; the worst-case terms as the auditor's."""
     dx, dy, v_o, u_o = (z[..., -1] for z in relative_motion(c, rows, slice(-1, None)))
-    v_c1 = np.maximum(c.v[rows.q, :, -1], 0.0)
-    u_c1 = rows.dir_c1[:, None] * c.u[rows.q, :, -1]
+    dx, dy = per_candidate(dx, dy)
+    v_c1, u_c1 = per_candidate(np.maximum(c.v[rows.q, :, -1], 0.0), rows.dir_c1[:, None] * c.u[rows.q, :, -1])
     v_o = np.maximum(v_o, 0.0)
     u_o = rows.dir_o[:, None] * u_o
     p1, po = _column(rows.p_c1), _column(rows.p_o)
@@ -260,7 +270,8 @@ def on_drivable_lanes(c: Candidates, offset: np.ndarray, half_lat: np.ndarray, r
     y = offset[:, None, None] + c.y
     left = np.maximum(room_left, offset + half_lat)[:, None, None] + BAND_EPS
     right = np.minimum(-room_right, offset - half_lat)[:, None, None] - BAND_EPS
-    return np.all((y + half_lat[:, None, None] <= left) & (y - half_lat[:, None, None] >= right), axis=2)
+    inside = np.all((y + half_lat[:, None, None] <= left) & (y - half_lat[:, None, None] >= right), axis=2)
+    return per_candidate(np.ones((len(offset), len(LON_CHOICES)), dtype=bool), inside)[1]
 
 
 def owed_to_others(c: Candidates, cars: np.ndarray, q: np.ndarray, accel_max: np.ndarray, accel_min: np.ndarray,
