@@ -416,7 +416,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         spec = load_scenario(args.scenario)
         resolver = param_resolver(spec)
         rules = dict(signal_rule=spec.rss.signal_rule, raw_episodes=spec.rss.raw_episodes,
-                     junction_brake_min=spec.rss.junction_brake_min)
+                     junction_brake_min=spec.rss.junction_brake_min, evasive=spec.rss.evasive)
     else:
         resolver = ParamResolver(args.rss_preset or "ad_rss", vtype_dynamics=vehicles.dynamics,
                                  hold_standing=args.hold_standing)

@@ -16,7 +16,7 @@ from typing import Any
 from .errors import ScenarioError
 from .planner.behavior.cost_weights import CostWeights
 from .road.topology import NetTopology, read_topology
-from .rss.params import PRESETS
+from .rss.params import PRESETS, EvasiveParams
 from .scenario_routes import check_depart_speed, check_route_permits, read_depart_lane, read_route
 from .scenario_rss import RssSpec, read_rss
 from .scenario_sumo import SumoSpec, read_input_files, read_sumo
@@ -204,6 +204,8 @@ class ScenarioSpec:
                     "vtypes": dict(self.rss.vtype_overrides)},
             "outputs": _plain(asdict(self.outputs)),
         }
+        if self.rss.evasive != EvasiveParams():  # left out at the defaults: the scenario's hash stays what it was
+            data["rss"].update(evasive_horizon_s=self.rss.evasive.horizon_s, evasive_margin_m=self.rss.evasive.margin_m)
         # SUMO files of the user's own, as absolute paths (left out where there are none: the hash of a scenario
         # without them is what it was before they could be given)
         if self.demand.route_files:

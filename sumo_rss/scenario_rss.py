@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from .rss.params import PARAM_NAMES, PRESETS, ROLES, resolve_params
+from .rss.params import PARAM_NAMES, PRESETS, ROLES, EvasiveParams, evasive_params, resolve_params
 from .validation import TableReader
 
 if TYPE_CHECKING:
@@ -21,6 +21,7 @@ class RssSpec:
     hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
     raw_episodes: bool = False  # an episode re-opening within ρ of its end is a new one (default: it continues)
     junction_brake_min: bool = False  # ad_rss's reading: a yielding car brakes at b_min even if it stops before
+    evasive: EvasiveParams = field(default_factory=EvasiveParams)  # rule 5: evasive_horizon_s, evasive_margin_m
 
 
 def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
@@ -28,6 +29,9 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec
     signal_rule = t.boolean("signal_rule", True)
     hold_standing = t.boolean("hold_standing", False)
     raw_episodes, junction_brake_min = t.boolean("raw_episodes", False), t.boolean("junction_brake_min", False)
+    evasive = evasive_params(preset, t.number("evasive_horizon_s", EvasiveParams.horizon_s, min=0.0, max=10.0,
+                                              min_exclusive=True),
+                             t.number("evasive_margin_m", EvasiveParams.margin_m, min=0.0, max=100.0))
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
     vtype_ids = {v.id for v in demand.vtypes}
     by_vtype = {}
@@ -37,7 +41,7 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec
                           name)
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
-    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing, raw_episodes, junction_brake_min)
+    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing, raw_episodes, junction_brake_min, evasive)
     problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
     if problem is not None:
         raise t.error(*problem)

@@ -104,10 +104,10 @@ def test_the_documented_python_api_exists_with_the_documented_parameters():
     for name, parameters in (("run_one", "spec out_dir variant fcd on_step controller stop"),
                              ("run_batch", "tasks out_dir executor progress"),
                              ("Auditor", "network params run_id trace_class signal_rule raw_episodes junction_brake_min "
-                                         "record_states spool"),
+                                         "record_states spool evasive"),
                              ("audit_fcd", "fcd network params vehicles collisions tls_states ego_ids run_id "
                                            "signal_rule raw_episodes junction_brake_min trace_class on_progress stop "
-                                           "record_states spool on_snapshot"),
+                                           "record_states spool on_snapshot evasive"),
                              ("write_view", "run_dir out net every geometry"),
                              ("EpsilonPlanner", "network params config")):
         assert list(inspect.signature(resolved[name]).parameters) == parameters.split(), name

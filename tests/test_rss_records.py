@@ -6,7 +6,7 @@ import tracemalloc
 
 import pandas as pd
 
-from sumo_rss.rss.records import EPISODE_COLUMNS, RecordTable
+from sumo_rss.rss.records import EPISODE_COLUMNS, RULE5_UNCHECKED, RecordTable
 
 COLUMNS = ["vehicle", "t_s", "index", "collision"]
 
@@ -38,7 +38,7 @@ def test_equal_strings_in_a_chunk_share_one_object():
 
 
 def test_an_episode_row_costs_a_few_hundred_bytes():
-    """A closed episode as the tracker makes it: 22 fields, a unique key, ids repeated across episodes. One dict
+    """A closed episode as the tracker makes it: 25 fields, a unique key, ids repeated across episodes. One dict
     per row cost ~1.2 kB here; a 24 h highway run closes ~2 million episodes."""
     def episode(i: int) -> dict:
         a, b = f"flow_{i % 40}.{i % 300}", f"flow_{(i + 7) % 40}.{i % 200}"
@@ -47,7 +47,7 @@ def test_an_episode_row_costs_a_few_hundred_bytes():
                 "situation": "same-direction", "conflict_area": "", "t_b_s": 0.1 * i, "t_end_s": 0.1 * i + 1.0,
                 "duration_s": 1.0, "trigger": "lon", "owed_a": "lon:brake-min", "owed_b": "none",
                 "responsible": "none", "min_lon_margin_m": -1.5, "min_lat_margin_m": -0.2, "collision": False,
-                "collider": "", "victim": "", "ended_by": "safe"}
+                "collider": "", "victim": "", "ended_by": "safe", **RULE5_UNCHECKED}
 
     n = 20_000
     tracemalloc.start()

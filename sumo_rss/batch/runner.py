@@ -168,7 +168,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         resolver = param_resolver(spec)
         auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule,
                           raw_episodes=spec.rss.raw_episodes, junction_brake_min=spec.rss.junction_brake_min,
-                          record_states=True)
+                          record_states=True, evasive=spec.rss.evasive)
         every_vehicle = (spec.outputs.fcd if fcd is None else fcd) or spec.ego is None
         recorder = TrajectoryRecorder(spec.net_file, near_ego_m=None if every_vehicle else NEAR_EGO_M)
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)

@@ -12,14 +12,14 @@ import pandas as pd
 from ..errors import SumoRssError, shown
 from ..rss.auditor import COLLISION_COLUMNS
 from ..rss.episode_states import PAIR_STATE_COLUMNS
-from ..rss.records import EPISODE_COLUMNS, VIOLATION_COLUMNS
+from ..rss.records import EPISODE_COLUMNS, RULE5_COLUMNS, VIOLATION_COLUMNS
 from ..rss.responsibility import RESPONSIBLE_VALUES
 
 RUN_KEYS = ["run_id", "scenario", "variant", "seed"]  # the first columns of every concatenated batch CSV
-COLUMNS = {  # the columns of each batch CSV
-    "episodes": RUN_KEYS + EPISODE_COLUMNS[1:],
+COLUMNS = {  # the columns of each batch CSV (rule 5's, appended later, are not required: older batches still read)
+    "episodes": RUN_KEYS + [c for c in EPISODE_COLUMNS[1:] if c not in RULE5_COLUMNS],
     "violations": RUN_KEYS + VIOLATION_COLUMNS[1:],
-    "collisions": RUN_KEYS + COLLISION_COLUMNS[1:],
+    "collisions": RUN_KEYS + [c for c in COLLISION_COLUMNS[1:] if c != "could_have_avoided"],
     "pair_states": RUN_KEYS + PAIR_STATE_COLUMNS[1:],
     "batch_summary": RUN_KEYS + ["status"],  # those the report uses
 }

@@ -18,7 +18,8 @@ from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
-from .params import RssParamArrays, RssParams, resolve_params
+from .evasive_track import Rule5Tracker
+from .params import EvasiveParams, RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import KIND_SIGNAL, intersection_situations
@@ -27,7 +28,8 @@ from .situations import PairSituations, evaluate, vehicle_frame
 
 INTERSECTION_KEY = np.int64(1) << np.int64(62)  # marks a pair's intersection situation (its own episodes)
 
-COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key"]
+COLLISION_COLUMNS = ["run_id", "time_s", "collider", "victim", "sumo_type", "blamed", "episode_key",
+                     "could_have_avoided"]
 
 
 @dataclass(frozen=True)
@@ -147,7 +149,8 @@ class Auditor:
 
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
                  trace_class: str | None = None, signal_rule: bool = True, raw_episodes: bool = False,
-                 junction_brake_min: bool = False, record_states: bool = False, spool: Path | None = None):
+                 junction_brake_min: bool = False, record_states: bool = False, spool: Path | None = None,
+                 evasive: EvasiveParams | None = None):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
         avoidable yellow-light entries as violations (docs/rss.md). ``raw_episodes``: an episode that re-opens
@@ -157,7 +160,7 @@ class Auditor:
         enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
         the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer); ``spool``: a folder they
         go to as they come (:mod:`sumo_rss.spool`) instead of memory, which must stay until the result is
-        written."""
+        written. ``evasive``: rule 5's settings (docs/rss.md, default T = 3 s, near miss below −1 m)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
@@ -169,7 +172,9 @@ class Auditor:
         self.params = params or ParamResolver()
         self.run_id = run_id
         self.pair_steps = 0
-        self._tracker = ResponsibilityTracker(run_id, join=not raw_episodes, stay_out_complies=not junction_brake_min)
+        self._rule5 = Rule5Tracker(network, evasive)
+        self._tracker = ResponsibilityTracker(run_id, join=not raw_episodes, stay_out_complies=not junction_brake_min,
+                                              on_close=self._rule5.close)
         self._uid: dict[str, int] = {}
         self._routes = RouteTable(network)
         self._prev_ids: set[str] = set()
@@ -211,6 +216,8 @@ class Auditor:
             accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=params,
             new_vehicle=new_vehicle, areas=areas,
             area_number=area_number))
+        self._rule5.step(snapshot, uid, frame, situations, keys, self._tracker, params,
+                         EPS_ACCEL + snapshot.accel_resolution)
         if self._states is not None:
             self._states.step(snapshot.time, self._tracker, keys, situations)
         if self._signal_rule is not None:
@@ -237,9 +244,10 @@ class Auditor:
             # The collision ends every open episode of the pair (on the road and at a junction).
             records = self._tracker.collide([int(key), int(key | INTERSECTION_KEY)], c.time, c.collider, c.victim)
         blamed, episode_key = collision_blame(records)
+        avoidable = sorted({r["rule5_responsible"] for r in records if r["rule5_responsible"]})
         self._collisions.append({"run_id": self.run_id, "time_s": c.time, "collider": c.collider,
                                  "victim": c.victim, "sumo_type": c.kind, "blamed": blamed,
-                                 "episode_key": episode_key})
+                                 "episode_key": episode_key, "could_have_avoided": ";".join(avoidable)})
 
     def finish(self) -> AuditResult:
         self._tracker.finish()

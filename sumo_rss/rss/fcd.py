@@ -27,6 +27,7 @@ from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_d
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
+from .params import EvasiveParams
 from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
 from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
@@ -451,15 +452,16 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               run_id: str = "", signal_rule: bool = True, raw_episodes: bool = False, junction_brake_min: bool = False,
               trace_class: str | None = None, on_progress: Callable[[AuditProgress], None] | None = None,
               stop: Callable[[], bool] | None = None, record_states: bool = False, spool: Path | None = None,
-              on_snapshot: Callable[[WorldSnapshot], None] | None = None) -> AuditResult:
+              on_snapshot: Callable[[WorldSnapshot], None] | None = None,
+              evasive: EvasiveParams | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(AuditProgress)`` is called after
     every time step. ``stop()`` is asked after every time step: True ends the audit there, as if the file ended
     there (with a warning that names the step). ``signal_rule``, ``raw_episodes``, ``junction_brake_min``,
-    ``trace_class``, ``record_states``, ``spool``: as for :class:`Auditor`. ``on_snapshot(snapshot)``: after every
-    audited time step (e.g. a viewer's recorder)."""
+    ``trace_class``, ``record_states``, ``spool``, ``evasive``: as for :class:`Auditor`. ``on_snapshot(snapshot)``:
+    after every audited time step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
         vehicles = read_vehicle_info(None, network.path)
@@ -472,7 +474,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     contacts = ContactTracker()
     auditor = Auditor(network, params, run_id, trace_class=trace_class, signal_rule=signal_rule,
                       raw_episodes=raw_episodes, junction_brake_min=junction_brake_min, record_states=record_states,
-                      spool=spool)
+                      spool=spool, evasive=evasive)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0

@@ -139,3 +139,34 @@ class RssParamArrays:
     def take(self, index: np.ndarray) -> RssParamArrays:
         """Rows ``index`` (e.g. the first car of every pair)."""
         return RssParamArrays(*(getattr(self, name)[index] for name in PARAM_NAMES))
+
+
+@dataclass(frozen=True)
+class EvasiveParams:
+    """Rule 5's settings (rss.md §8), the same for every preset (:func:`evasive_params`)."""
+
+    horizon_s: float = 3.0  # T [s]: how far ahead an evasive manoeuvre must avoid the collision
+    margin_m: float = 1.0  # [m] an episode whose lon or lat margin fell below −this is a near miss (asked)
+
+    def problems(self) -> list[str]:
+        """Every range rule this set breaks (empty when valid)."""
+        out = []
+        if not 0.0 < self.horizon_s <= 10.0:
+            out.append(f"evasive_horizon_s must be in (0, 10] s, is {self.horizon_s:g}")
+        if not 0.0 <= self.margin_m <= 100.0:
+            out.append(f"evasive_margin_m must be in [0, 100] m, is {self.margin_m:g}")
+        return out
+
+
+def evasive_params(preset: str, horizon_s: float | None = None, margin_m: float | None = None) -> EvasiveParams:
+    """Rule 5's settings of ``preset`` (T = 3 s, near miss below −1 m for all of PRESETS), with the given
+    overrides; raises ``ValueError`` listing every broken rule."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown RSS preset {preset!r}; expected one of {', '.join(PRESETS)}")
+    params = EvasiveParams()
+    params = replace(params, **{k: float(v) for k, v in (("horizon_s", horizon_s), ("margin_m", margin_m))
+                                if v is not None})
+    problems = params.problems()
+    if problems:
+        raise ValueError("; ".join(problems))
+    return params

@@ -6,10 +6,16 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import pandas as pd
 
+# Rule 5 (rss.md §8, docs/rss.md): the columns episodes.csv gained last, their values where an episode is not asked,
+# and the constraint of its violations.
+RULE5_COLUMNS = ("evasive_checked", "evasive_last_s", "rule5_responsible")
 EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a", "class_b", "episode_index",
                    "situation", "conflict_area", "t_b_s", "t_end_s", "duration_s", "trigger", "owed_a", "owed_b",
                    "responsible",
-                   "min_lon_margin_m", "min_lat_margin_m", "collision", "collider", "victim", "ended_by"]
+                   "min_lon_margin_m", "min_lat_margin_m", "collision", "collider", "victim", "ended_by",
+                   *RULE5_COLUMNS]
+RULE5_UNCHECKED = {"evasive_checked": False, "evasive_last_s": float("nan"), "rule5_responsible": ""}
+EVASIVE_CONSTRAINT = "evasive-effort"
 VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
                      "worst_actual", "excess", "t_start_s", "t_end_s"]
 

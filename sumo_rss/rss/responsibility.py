@@ -7,6 +7,7 @@ pairs that are dangerous *now*.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +18,7 @@ from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
+from .records import EVASIVE_CONSTRAINT, RULE5_UNCHECKED
 from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
@@ -114,10 +116,14 @@ class ResponsibilityTracker:
     ``join``: an episode that re-opens within the pair's ρ of its end continues it (:mod:`.episode_log`); False:
     raw episodes. ``stay_out_complies``: a car that owes braking at a junction and never enters the conflict area
     while the episode lasts complied (the intersection response exists so that it does not enter); False: ad_rss's
-    reading, braking at b_min after ρ until stopped however far from the area it stops."""
+    reading, braking at b_min after ρ until stopped however far from the area it stops. ``on_close(record,
+    joinable, window [s], time [s])``: called with every closed (or joined, or collided) episode record before it is
+    logged; may fill its rule-5 fields and returns violation rows to add (rule 5, :mod:`.evasive_track`)."""
 
-    def __init__(self, run_id: str = "", join: bool = True, stay_out_complies: bool = True):
+    def __init__(self, run_id: str = "", join: bool = True, stay_out_complies: bool = True,
+                 on_close: Callable[[dict, bool, float, float], list[dict]] | None = None):
         self.run_id = run_id
+        self._on_close = on_close or (lambda record, joinable, window, time: [])
         self.stay_out_complies = stay_out_complies
         self._log = EpisodeLog(join)
         # pair key → (car, row) of its open episode's violations, judged at its end
@@ -178,6 +184,11 @@ class ResponsibilityTracker:
         self._prev_by_signal = sit.kind[order] == KIND_SIGNAL
         self._last_time = step.time
 
+    @property
+    def open(self) -> OpenEpisodes:
+        """The open episodes (after the last step), sorted by pair key."""
+        return self._open
+
     def open_episodes(self, vclass: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(pair keys, serials, involves) of the open episodes, sorted by pair key; ``involves``: the episode has a
         car of class ``vclass`` (every episode where None)."""
@@ -215,6 +226,7 @@ class ResponsibilityTracker:
                 record, parts = held
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
+                self._judge_rule5(record, parts, False, 0.0, time)
                 self._log.close(pair_key, record, parts, time, 0.0, joinable=False)
                 records.append(record)
         self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
@@ -455,14 +467,23 @@ class ResponsibilityTracker:
                 "min_lon_margin_m": float(e.min_lon_margin[i]), "min_lat_margin_m": float(e.min_lat_margin[i]),
                 "collision": collision is not None, "collider": collision[0] if collision else "",
                 "victim": collision[1] if collision else "", "ended_by": "collision" if collision else
-                "end-of-data" if end_of_data else "safe"}
+                "end-of-data" if end_of_data else "safe", **RULE5_UNCHECKED}
             if first is not None:
                 record = join_records(first, record)
+            joinable = collision is None and not end_of_data
+            self._judge_rule5(record, parts, joinable, float(e.window[i]), time)
             records.append(record)
-            self._log.close(key, record, parts, time, float(e.window[i]),
-                            joinable=collision is None and not end_of_data)
+            self._log.close(key, record, parts, time, float(e.window[i]), joinable=joinable)
         self._open = e.take(np.flatnonzero(~mask))
         return records
+
+
+    def _judge_rule5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
+        """Rule 5's verdict of a closed (joined, collided) episode (``on_close``): its record's fields, and its
+        evasive-effort row in place of an earlier part's."""
+        rows = self._on_close(record, joinable, window, time)
+        parts.rows[:] = [held for held in parts.rows if held[2]["constraint"] != EVASIVE_CONSTRAINT] + \
+            [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
 
 
 def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray
