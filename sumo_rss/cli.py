@@ -17,7 +17,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ScenarioError, SumoRssError, shown
-from .rss.params import PRESETS
+from .rss.params import PRESETS, EvasiveParams
 from .scenario import CONTROLLERS, MAX_SEED
 from .view.command import add_view_command, run_view
 
@@ -220,6 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--junction-brake-min", action="store_true",
                        help="a car owing braking at a junction must brake at b_min until stopped even if it stops "
                             "before the conflict area (ad_rss's reading; default: a car that stays out complied)")
+    audit.add_argument("--evasive-effort", action="store_true",
+                       help="RSS rule 5: whether the car that complied could have evaded with a legal manoeuvre "
+                            "(episodes.csv evasive_*, rule5_responsible; off by default: docs/rss.md 'Rule 5')")
     audit.add_argument("--ego", action="append", default=[], metavar="ID",
                        help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
@@ -410,9 +413,9 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.scenario is not None:
         if args.rss_preset or args.hold_standing or args.no_signal_rule or args.raw_episodes or \
-                args.junction_brake_min:
-            raise SumoRssError("--scenario sets the RSS parameters and rules: leave out --rss-preset, "
-                               "--hold-standing, --no-signal-rule, --raw-episodes and --junction-brake-min")
+                args.junction_brake_min or args.evasive_effort:
+            raise SumoRssError("--scenario sets the RSS parameters and rules: leave out --rss-preset, --hold-standing, "
+                               "--no-signal-rule, --raw-episodes, --junction-brake-min and --evasive-effort")
         spec = load_scenario(args.scenario)
         resolver = param_resolver(spec)
         rules = dict(signal_rule=spec.rss.signal_rule, raw_episodes=spec.rss.raw_episodes,
@@ -421,7 +424,8 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         resolver = ParamResolver(args.rss_preset or "ad_rss", vtype_dynamics=vehicles.dynamics,
                                  hold_standing=args.hold_standing)
         rules = dict(signal_rule=not args.no_signal_rule, raw_episodes=args.raw_episodes,
-                     junction_brake_min=args.junction_brake_min)
+                     junction_brake_min=args.junction_brake_min,
+                     evasive=EvasiveParams(enabled=True) if args.evasive_effort else None)
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     # What 'sumo-rss view' replays (every vehicle, every episode's steps) goes to disk as it is recorded, so that

@@ -205,7 +205,8 @@ class ScenarioSpec:
             "outputs": _plain(asdict(self.outputs)),
         }
         if self.rss.evasive != EvasiveParams():  # left out at the defaults: the scenario's hash stays what it was
-            data["rss"].update(evasive_horizon_s=self.rss.evasive.horizon_s, evasive_margin_m=self.rss.evasive.margin_m)
+            data["rss"].update(evasive_effort=self.rss.evasive.enabled, evasive_horizon_s=self.rss.evasive.horizon_s,
+                               evasive_margin_m=self.rss.evasive.margin_m)
         # SUMO files of the user's own, as absolute paths (left out where there are none: the hash of a scenario
         # without them is what it was before they could be given)
         if self.demand.route_files:

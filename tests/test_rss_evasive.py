@@ -13,6 +13,7 @@ from sumo_rss.rss.evasive import lateral_manoeuvre, naive
 from sumo_rss.rss.params import EvasiveParams, evasive_params
 from sumo_rss.sim.snapshot import WorldSnapshot
 
+RULE5 = EvasiveParams(enabled=True)  # rule 5 is off by default (docs/rss.md)
 LANE_Y = {0: -8.75, 1: -5.25, 2: -1.75}
 LENGTH, WIDTH = 4.5, 1.8
 
@@ -57,7 +58,8 @@ def test_a_lateral_candidate_comes_to_rest_one_lane_over():
 
 
 def test_rule5_settings_are_checked():
-    assert evasive_params("ad_rss") == EvasiveParams(3.0, 1.0)
+    assert evasive_params("ad_rss") == EvasiveParams(3.0, 1.0, enabled=False)
+    assert evasive_params("ad_rss", enabled=True).enabled
     assert evasive_params("krauss", horizon_s=2.0).horizon_s == 2.0
     with pytest.raises(ValueError, match="evasive_horizon_s must be in"):
         evasive_params("ad_rss", horizon_s=0.0)
@@ -72,7 +74,7 @@ def test_a_leader_hit_from_behind_could_not_have_evaded(net):
     into the leader at 1.6 s. At 1.1 s the gap is 8 m: in 3 s the follower on its naive prediction (20 m/s) covers
     60 m, the leader at most 1.75·3² = 15.75 m, and 0.2 m/s² moves it 0.9 m sideways, short of the 1.9 m it would
     need: no candidate avoids the contact, at 1.1 s nor later (rules 1-3: the follower; rule 5: none)."""
-    auditor = Auditor(net, ParamResolver("ad_rss"), signal_rule=False)
+    auditor = Auditor(net, ParamResolver("ad_rss"), signal_rule=False, evasive=RULE5)
     x, v, t = 465.5, 20.0, 0.0
     while True:
         a = -8.0 if t > 1.25 else 0.0
@@ -102,7 +104,7 @@ def _cut_in(net, occupied: bool):
     (15 m behind), both at 20 m/s in their lane's centre, 1.7 m from the keeper."""
     cars0 = [("lane0_ahead", 0, 503.5), ("lane0_behind", 0, 485.0)] if occupied else []
     auditor = Auditor(net, ParamResolver("ad_rss", vtype_overrides={"evader": {"lat_accel_max": 1.0}}),
-                      signal_rule=False)
+                      signal_rule=False, evasive=RULE5)
     offset, t = 0.3, 0.0
     for k in range(21):
         t = round(0.1 * k, 6)

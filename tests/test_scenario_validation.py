@@ -94,7 +94,7 @@ BROKEN = [
     ("misspelt rss parameter", lambda d: _set(d, "rss.background", {"lon_brake_mx": 6.0}),
      "rss.background.lon_brake_mx", "(did you mean 'lon_brake_max'?); known keys here: lat_accel_max"),
     ("unknown rss role", lambda d: _set(d, "rss.trucks", {"lon_brake_max": 6.0}), "rss.trucks",
-     "known keys here: background, ego, evasive_horizon_s, evasive_margin_m, hold_standing"),
+     "known keys here: background, ego, evasive_effort, evasive_horizon_s, evasive_margin_m, hold_standing"),
     ("rule 5 horizon of 0 s", lambda d: _set(d, "rss.evasive_horizon_s", 0.0), "rss.evasive_horizon_s",
      "expected a number in (0, 10]"),
     ("negative rule 5 margin", lambda d: _set(d, "rss.evasive_margin_m", -1.0), "rss.evasive_margin_m",

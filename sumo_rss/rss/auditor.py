@@ -160,7 +160,7 @@ class Auditor:
         enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
         the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer); ``spool``: a folder they
         go to as they come (:mod:`sumo_rss.spool`) instead of memory, which must stay until the result is
-        written. ``evasive``: rule 5's settings (docs/rss.md, default T = 3 s, near miss below −1 m)."""
+        written. ``evasive``: rule 5's settings (docs/rss.md; off unless ``enabled``)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index

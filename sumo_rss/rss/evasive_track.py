@@ -128,6 +128,8 @@ class Rule5Tracker:
              keys: np.ndarray, tracker: ResponsibilityTracker, params: RssParamArrays, tolerance: float) -> None:
         """Judge step ``snapshot.time``: match the open windows with the cars' accelerations, then ask the open
         episodes (``tracker``'s, after its step) with the pairs' ``situations`` (``keys`` per row)."""
+        if not self.params.enabled:
+            return
         t = snapshot.time
         lat_accel = np.zeros(len(snapshot))
         if self._prev_time is not None:
@@ -145,6 +147,8 @@ class Rule5Tracker:
     def close(self, record: dict, joinable: bool, window: float, time: float) -> list[dict]:
         """Fill ``record``'s rule-5 fields (a closed, possibly joined, episode) and return its evasive-effort
         violation row (none, or one)."""
+        if not self.params.enabled:
+            return []
         serial = np.int64(record["serial"])
         w = self._windows
         ended = np.flatnonzero((w.serial == serial) & ~w.folded)  # dropped at the next step (one copy per step)

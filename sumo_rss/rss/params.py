@@ -147,6 +147,9 @@ class EvasiveParams:
 
     horizon_s: float = 3.0  # T [s]: how far ahead an evasive manoeuvre must avoid the collision
     margin_m: float = 1.0  # [m] an episode whose lon or lat margin fell below −this is a near miss (asked)
+    # Off by default (docs/rss.md, rule 5): asked of near misses it blames the car a tailgater drives at for not
+    # stopping or speeding away (acosta 200-215 s: 238 of 661 episodes), and it costs 1.5x the audit's time.
+    enabled: bool = False
 
     def problems(self) -> list[str]:
         """Every range rule this set breaks (empty when valid)."""
@@ -158,12 +161,13 @@ class EvasiveParams:
         return out
 
 
-def evasive_params(preset: str, horizon_s: float | None = None, margin_m: float | None = None) -> EvasiveParams:
+def evasive_params(preset: str, horizon_s: float | None = None, margin_m: float | None = None,
+                   enabled: bool = False) -> EvasiveParams:
     """Rule 5's settings of ``preset`` (T = 3 s, near miss below −1 m for all of PRESETS), with the given
     overrides; raises ``ValueError`` listing every broken rule."""
     if preset not in PRESETS:
         raise ValueError(f"unknown RSS preset {preset!r}; expected one of {', '.join(PRESETS)}")
-    params = EvasiveParams()
+    params = EvasiveParams(enabled=enabled)
     params = replace(params, **{k: float(v) for k, v in (("horizon_s", horizon_s), ("margin_m", margin_m))
                                 if v is not None})
     problems = params.problems()
