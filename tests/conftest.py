@@ -104,7 +104,7 @@ def audit_commanded(spec, setup, control, seconds: float, run_id: str = "test", 
     from sumo_rss.rss.auditor import Auditor
     from sumo_rss.sim.session import Session
 
-    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), run_id)
+    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), run_id, evasive=spec.rss.evasive)
     with Session(spec) as session:
         setup()
         while session.steps < round(seconds / spec.step_s):

@@ -9,6 +9,7 @@ import errno
 import json
 import os
 import resource
+import re
 import shutil
 import signal
 import subprocess
@@ -86,8 +87,11 @@ def test_an_audit_that_cannot_write_its_outputs_writes_none_and_names_the_file(t
                    "--out", str(out), "--quiet", preexec_fn=_file_size_limit(limit))
     assert proc.returncode == 2
     line = _one_error_line(proc.stderr)
-    assert "episode_states.npz: cannot be written: the file grew beyond the file-size limit" in line
-    assert f"(its rows go to {out}/.spool-" in line
+    # Whichever file first outgrows the limit is named: the steps of the episodes spooled while the audit runs
+    # (with where their rows go) or episodes.csv when it is written.
+    named = re.search(r"(\S+): cannot be written: the file grew beyond the file-size limit", line)
+    assert named and Path(named.group(1)).name in ("episode_states.npz", "episodes.csv"), line
+    assert Path(named.group(1)).name == "episodes.csv" or f"(its rows go to {out}/.spool-" in line
     assert sorted(p.name for p in out.iterdir()) == ["collisions.csv"]  # no new file, no temporary file
     assert (out / "collisions.csv").read_text() == "an older audit's\n"
 

@@ -19,6 +19,7 @@ def _empty_highway(tmp_path, valid_scenario):
     valid_scenario["demand"]["flows"] = []
     del valid_scenario["ego"]
     valid_scenario["duration_s"] = 60.0
+    valid_scenario.setdefault("rss", {})["evasive_effort"] = True  # rule 5 is opt-in (docs/rss.md)
     return load_scenario(write_scenario(tmp_path, valid_scenario))
 
 
