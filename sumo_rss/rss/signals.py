@@ -27,6 +27,7 @@ from ..sim.snapshot import WorldSnapshot
 from ..sumo_xml import MALFORMED, output_elements
 from .intersection import next_route_edge
 from .record_checks import signal_state
+from .responsibility import _lookup
 from .situations import VehicleFrame
 
 RED, YELLOW = "rRu", "yY"  # u: red-yellow, SUMO lets no car pass yet
@@ -162,10 +163,7 @@ class _Approach:
 
     def find(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(approached at that step, its row) per id."""
-        if not len(self):
-            return np.zeros(len(ids), dtype=bool), np.zeros(len(ids), dtype=int)
-        at = np.clip(np.searchsorted(self.ids, ids), 0, len(self) - 1)
-        return self.ids[at] == ids, at
+        return _lookup(self.ids, ids)
 
     def __len__(self) -> int:
         return int(self.ids.shape[0])
