@@ -62,7 +62,7 @@ class RoadNetwork:
     edge_exit: np.ndarray
     edge_reach: GraphReach
     lane_reach: GraphReach
-    _lane_order: np.ndarray  # argsort of lane_ids, for vectorised id → index lookups
+    _lane_lookup: dict[str, int]  # lane id → index
     _edge_lookup: dict[str, int]
 
     @classmethod
@@ -147,7 +147,7 @@ class RoadNetwork:
             edge_opposite=two_way.edge_opposite, edge_length=edge_length, edge_successors=edge_successors,
             edge_exit=_edge_exits(edge_successors, [e.getFunction() == "internal" for e in edges]),
             edge_reach=GraphReach(edge_successors, edge_length), lane_reach=GraphReach(successors, lane_length),
-            _lane_order=np.argsort(lane_ids), _edge_lookup=edge_index)
+            _lane_lookup=lane_idx, _edge_lookup=edge_index)
 
     def edge_indices(self, edge_ids: list[str] | tuple[str, ...]) -> np.ndarray:
         """Indices of edge ids (e.g. a route); raises ``KeyError`` for an unknown id."""
@@ -155,13 +155,12 @@ class RoadNetwork:
 
     def lane_indices(self, lane_ids: np.ndarray) -> np.ndarray:
         """Indices of ``lane_ids`` (vectorised); raises :class:`UnknownLaneError` naming the unknown ids."""
-        lane_ids = np.asarray(lane_ids, dtype=str)
-        sorted_ids = self.lane_ids[self._lane_order]
-        pos = np.clip(np.searchsorted(sorted_ids, lane_ids), 0, len(sorted_ids) - 1)
-        found = sorted_ids[pos] == lane_ids
-        if not np.all(found):
-            raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(sorted(set(lane_ids[~found])))}")
-        return self._lane_order[pos]
+        names = lane_ids.tolist() if isinstance(lane_ids, np.ndarray) else list(lane_ids)
+        try:
+            return np.fromiter(map(self._lane_lookup.__getitem__, names), dtype=np.int64, count=len(names))
+        except KeyError:
+            unknown = sorted({str(k) for k in names} - self._lane_lookup.keys())
+            raise UnknownLaneError(f"lanes not in {self.path.name}: {', '.join(unknown)}") from None
 
     def require_reach(self, horizon: float) -> None:
         """Make :meth:`edge_distances` and :meth:`lane_distances` reach exactly ``horizon`` [m] beyond the end of

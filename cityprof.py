@@ -1,1 +1,0 @@
-pstats.Stats(prof).sort_stats("tottime").print_stats(15)
