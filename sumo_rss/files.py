@@ -194,6 +194,9 @@ def write_csv(frame: pd.DataFrame, path: Path) -> None:
         csv_writer(frame)(tmp)
 
 
+NPZ_COMPRESS_LEVEL = 1  # zlib's fastest: acosta's 600 s audit writes 181 MB of arrays into 70.6 MB in 10.2 s, 67.4 MB in 14.6 s at level 6
+
+
 def write_npz(path: Path, arrays: Mapping[str, object]) -> None:
     """``arrays`` as a compressed ``.npz`` (``numpy.load`` reads it), written atomically and byte for byte the same
     for the same arrays: every member has a fixed time stamp (``numpy.savez`` stamps the current time). A value is
@@ -204,6 +207,9 @@ def write_npz(path: Path, arrays: Mapping[str, object]) -> None:
         for name, value in arrays.items():
             member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             member.compress_type = zipfile.ZIP_DEFLATED
+            # Python 3.11 has no public way to give a ZipInfo its level (3.13: ZipInfo.compress_level);
+            # ZipFile.open(member, "w") reads this attribute.
+            member._compresslevel = NPZ_COMPRESS_LEVEL
             if hasattr(value, "chunks"):
                 _write_npy_chunks(archive, member, value)
                 continue
