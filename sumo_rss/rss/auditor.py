@@ -19,7 +19,7 @@ from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
 from .evasive_track import Rule5Tracker
-from .params import EvasiveParams, RssParamArrays, RssParams, resolve_params
+from .params import BICYCLE, PERSON, EvasiveParams, RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import KIND_SIGNAL, intersection_situations
@@ -62,7 +62,7 @@ class ParamResolver:
     def get(self, vclass: str, vtype: str) -> RssParams:
         key = (vclass, vtype)
         if key not in self._cache:
-            role = "ego" if vclass == EGO_CLASS else "background"
+            role = vclass if vclass in (EGO_CLASS, BICYCLE, PERSON) else "background"
             tau, decel = self.vtype_dynamics.get(vtype, (1.0, 4.5))
             self._cache[key] = resolve_params(self.preset, role, None if role == "ego" else vtype,
                                               role_overrides=self.role_overrides,

@@ -23,7 +23,7 @@ from ..errors import SumoRssError, cut, listed, shown
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
-from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+from ..sim.snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
@@ -58,6 +58,7 @@ class VehicleInfo:
     dynamics: dict[str, tuple[float, float]] = field(default_factory=dict)  # vType → (tau [s], decel [m/s²])
     routes: dict[str, tuple[str, ...]] = field(default_factory=dict)  # vehicle or flow id → edges
     types: dict[str, str] = field(default_factory=dict)  # vehicle or flow id → vType (for an FCD without 'type')
+    bicycles: frozenset[str] = frozenset({"DEFAULT_BIKETYPE"})  # vTypes of SUMO vClass bicycle
 
     def route_of(self, vehicle_id: str) -> tuple[str, ...] | None:
         """The route of a vehicle, or of the flow that made it (``flow.k``); None if unknown."""
@@ -106,7 +107,8 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
-                       {t: (p.tau, p.decel) for t, p in types.items()})
+                       {t: (p.tau, p.decel) for t, p in types.items()},
+                       bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"))
     named_routes: dict[str, tuple[str, ...]] = {}
     for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
         if elem.tag == "route" and elem.get("id"):
@@ -431,7 +433,8 @@ class FcdReader:
             time=time, ids=ids, x=x, y=y, heading=heading, speed=speed, accel=accel, lat_speed=lat_speed,
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
-            vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
+            vclass=np.where(is_ego, EGO_CLASS, np.where(np.isin(vtype, list(self.vehicles.bicycles)), BICYCLE_CLASS,
+                                                        BACKGROUND_CLASS)), vtype=vtype,
             signals=signals,
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
             accel_resolution=accel_resolution)

@@ -31,7 +31,7 @@ from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
 from .demand import sumo_number, write_route_file
 from .fcd_output import correct_placed_vehicle
-from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+from .snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 
 FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals"
 FCD_PRECISION = 6  # decimals in SUMO outputs written by a session (FCD, collisions). Snapshot values are rounded
@@ -277,7 +277,8 @@ class Session:
         v.subscribe(vid, _VARS)
         self.vehicles_inserted += 1
         self._static[vid] = _Static(v.getLength(vid), v.getWidth(vid), v.getTypeID(vid),
-                                    EGO_CLASS if vid == self.ego_id else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
+                                    EGO_CLASS if vid == self.ego_id else BICYCLE_CLASS
+                                    if v.getVehicleClass(vid) == "bicycle" else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
 
     def _record_collisions(self, time: float) -> None:
         reports = [CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType, c.colliderSpeed,

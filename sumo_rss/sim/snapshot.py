@@ -11,6 +11,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..angles import wrap_angle
+from ..road_users import BICYCLE_CLASS, PERSON_CLASS  # noqa: F401  (classes beside EGO_CLASS, BACKGROUND_CLASS)
 
 EGO_CLASS = "ego"
 BACKGROUND_CLASS = "background"
@@ -50,7 +51,7 @@ class WorldSnapshot:
     lane_index: np.ndarray  # int
     lane_pos: np.ndarray  # [m] s of the front bumper along the lane
     lat_pos: np.ndarray  # [m] offset of the front-bumper centre from the lane's centre line, + = left (posLat)
-    vclass: np.ndarray  # str: 'ego' | 'background'
+    vclass: np.ndarray  # str: 'ego' | 'background' | 'bicycle'
     vtype: np.ndarray  # str: SUMO vType id
     signals: np.ndarray  # int: SUMO signal bit set
     route_index: np.ndarray  # int
