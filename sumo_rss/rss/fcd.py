@@ -30,6 +30,7 @@ from .auditor import AuditResult, Auditor, ParamResolver
 from .params import EvasiveParams
 from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
+from .fcd_persons import person_snapshot
 from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
@@ -217,8 +218,8 @@ class FcdReader:
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
-        self._warned_persons = False  # about persons and containers, which are not audited
-        self.people: set[str] = set()  # ids of the persons and containers in the file so far (not audited)
+        self._warned_persons = False  # about containers, which are not audited
+        self.people: set[str] = set()  # ids of the persons and containers in the file so far
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -337,8 +338,14 @@ class FcdReader:
         self.people.update(step.unaudited)
         if step.unaudited and not self._warned_persons:
             self._warned_persons = True
-            warnings.warn(f"{where}: persons and containers are not audited (the RSS model covers vehicles; a "
+            warnings.warn(f"{where}: containers are not audited (the RSS model covers vehicles and persons; a "
                           "collision with one is listed with blamed 'none')", stacklevel=3)
+        try:
+            persons = person_snapshot(step.persons, self.vehicles.sizes, where) if step.persons else None
+        except ValueError as exc:
+            raise FcdError(str(exc)) from None
+        if persons is not None:
+            self.people.update(persons.ids.tolist())
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
             raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
@@ -437,7 +444,7 @@ class FcdReader:
                                                         BACKGROUND_CLASS)), vtype=vtype,
             signals=signals,
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
-            accel_resolution=accel_resolution)
+            accel_resolution=accel_resolution, persons=persons)
 
 
 @dataclass(frozen=True)

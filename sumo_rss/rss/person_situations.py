@@ -1,0 +1,199 @@
+"""Persons as road users (rss.md §10): a person on a crossing and a vehicle whose path crosses it.
+
+The crossing is the conflict area (:mod:`~sumo_rss.road.crossings`): the vehicle's d_enter / d_exit run along its
+link's path, the person's along the crossing in its walking direction (a person walks either way). Priority comes
+from the crossing's link: SUMO's junction logic (a zebra gives the person priority), at signals the two links'
+states (G over g over the rest). Safety is the intersection test of rss.md §4 with the person's own parameters, so
+the responses owed and the blame follow as for two cars.
+
+Persons on walking areas and sidewalks form no situation with vehicles (the paper's "vehicles need not worry about
+pedestrians on the sidewalk"); persons are not paired with persons. A person on an edge without a sidewalk walks
+on a vehicle lane: that case (the paper's heading-change wedge) is not evaluated, and the audit says so
+(:meth:`PersonAudit.on_vehicle_lanes`).
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..angles import wrap_angle
+from ..road.crossings import CrossingEntries, CrossingModel
+from ..road.junctions import JunctionModel
+from ..road.link_pairs import expand_ranges
+from ..road.network import RoadNetwork
+from ..road_users import PERSON_CLASS
+from ..sim.persons import PersonSnapshot
+from ..sim.snapshot import WorldSnapshot
+from .intersection import (KIND_SIGNAL, KIND_SAME, KIND_YIELD, PRIORITY_A, PRIORITY_B, PRIORITY_SAME,
+                           intersection_safety, junction_entries, next_route_edge)
+from .params import PARAM_NAMES, RssParamArrays
+from .situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, PairSituations, VehicleFrame
+
+# [rad] a person at a crossing's end who faces within this of the crossing's direction may step onto it (SUMO's
+# persons turn towards a crossing on the walking area before they step on; one walking along the kerb or towards
+# the other crossing of a corner faces 90° away)
+STEP_ON_ANGLE = np.radians(60.0)
+STEP_ON_RADIUS = 10.0  # [m] persons this close to a crossing's end are in its situations (7 s at 1.4 m/s)
+
+
+@dataclass(frozen=True, eq=False)
+class RoadUsers:
+    """The vehicles of a step followed by its persons, in one row space (what the responsibility tracker reads;
+    situations name their rows)."""
+
+    ids: np.ndarray  # str
+    vclass: np.ndarray  # str
+    accel: np.ndarray  # [m/s²]
+    speed: np.ndarray  # [m/s]
+    params: RssParamArrays
+    vehicles: int  # rows [0, vehicles) are the snapshot's vehicles
+
+
+def _stacked(a: RssParamArrays, b: RssParamArrays) -> RssParamArrays:
+    return RssParamArrays(*(np.concatenate([getattr(a, name), getattr(b, name)]) for name in PARAM_NAMES))
+
+
+class PersonAudit:
+    """Person rows and person situations of each step of one run (time order)."""
+
+    def __init__(self, network: RoadNetwork, junctions: JunctionModel, crossings: CrossingModel):
+        self.network, self.junctions, self.crossings = network, junctions, crossings
+        self._entries = CrossingEntries.of(crossings, network.shapes)
+        self._prev_ids, self._prev_speed = np.zeros(0, dtype=str), np.zeros(0)  # sorted by id
+        self._prev_time: float | None = None
+        self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk (not audited)
+
+    def users(self, snapshot: WorldSnapshot, params: RssParamArrays, person_params: RssParamArrays) -> RoadUsers:
+        """The step's road users: ``snapshot``'s vehicles with their ``params``, then its persons with
+        ``person_params`` and accelerations from their speed differences [m/s²] (0 for a person not seen the step
+        before)."""
+        persons = snapshot.persons
+        if persons is None or not len(persons):
+            self._prev_ids, self._prev_speed, self._prev_time = np.zeros(0, dtype=str), np.zeros(0), snapshot.time
+            return RoadUsers(snapshot.ids, snapshot.vclass, snapshot.accel, snapshot.speed, params, len(snapshot))
+        accel = np.zeros(len(persons))
+        if self._prev_time is not None and len(self._prev_ids):
+            pos = np.minimum(np.searchsorted(self._prev_ids, persons.ids), len(self._prev_ids) - 1)
+            seen = self._prev_ids[pos] == persons.ids
+            accel = np.where(seen, (persons.speed - self._prev_speed[pos]) / (snapshot.time - self._prev_time), 0.0)
+        order = np.argsort(persons.ids)
+        self._prev_ids, self._prev_speed, self._prev_time = persons.ids[order], persons.speed[order], snapshot.time
+        off_road = np.isin(persons.edge_id, self.crossings.walkway_edges)
+        if not off_road.all():
+            self.on_vehicle_lanes.update(persons.ids[~off_road].tolist())
+        return RoadUsers(np.concatenate([snapshot.ids, persons.ids]),
+                         np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
+                         np.concatenate([snapshot.accel, accel]), np.concatenate([snapshot.speed, persons.speed]),
+                         _stacked(params, person_params), len(snapshot))
+
+    def situations(self, snapshot: WorldSnapshot, frame: VehicleFrame, users: RoadUsers,
+                   horizon: float) -> PairSituations | None:
+        """Every (vehicle, person on a crossing) pair whose paths meet in a crossing area that neither has left,
+        one situation per pair and area (rows of ``users``; None without any). Vehicles within ``horizon`` [m] of
+        a junction take part, as in :func:`~sumo_rss.rss.intersection.intersection_situations`."""
+        persons, model = snapshot.persons, self.crossings
+        if persons is None or not len(persons) or not len(model):
+            return None
+        walking, crossing, s, forward = self._on_crossings(persons)
+        if not walking.size:
+            return None
+        # Vehicles' entries into links, and their crossing areas with a person on that crossing.
+        rows, links, pos = junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge),
+                                            self.network, self.junctions, horizon)
+        entry, k = model.areas_of_links(links)
+        by_crossing = np.argsort(crossing, kind="stable")
+        on = crossing[by_crossing]
+        pair, hit = expand_ranges(np.searchsorted(on, model.crossing[k], side="left"),
+                                  np.searchsorted(on, model.crossing[k], side="right"))
+        entry, k, w = entry[pair], k[pair], by_crossing[hit]  # w: into ``walking``
+        if not k.size:
+            return None
+        r, p = rows[entry], walking[w]
+        length = snapshot.length[r]
+        enter_v, exit_v = model.link_start[k] - pos[entry], model.link_end[k] - pos[entry] + length
+        s_w, fwd, p_length = s[w], forward[w], persons.length[p]
+        enter_p = np.where(fwd, model.cross_start[k] - s_w, s_w - model.cross_end[k])
+        exit_p = np.where(fwd, model.cross_end[k] - s_w, s_w - model.cross_start[k]) + p_length
+        keep = (exit_v > 0.0) & (exit_p > 0.0)
+        if not keep.any():
+            return None
+        r, p, k, link = r[keep], p[keep], k[keep], links[entry[keep]]
+        enter_v, exit_v, enter_p, exit_p, length, p_length = (x[keep] for x in (enter_v, exit_v, enter_p, exit_p,
+                                                                                length, p_length))
+        vehicle_first, by_signal = self._priority(snapshot.tls_states, link, model.crossing[k], model.static_priority[k])
+        # Name each situation by id order (a < b); the person's row comes after the vehicles'.
+        person_row = users.vehicles + p
+        a_is_vehicle = snapshot.ids[r] < persons.ids[p]
+        pick = lambda on_vehicle, on_person: np.where(a_is_vehicle, on_vehicle, on_person)  # noqa: E731
+        ra, rb = pick(r, person_row), pick(person_row, r)
+        enter_a, enter_b, exit_a, exit_b = pick(enter_v, enter_p), pick(enter_p, enter_v), pick(exit_v, exit_p), \
+            pick(exit_p, exit_v)
+        length_a, length_b = pick(length, p_length), pick(p_length, length)
+        priority = np.where(vehicle_first == 0, PRIORITY_SAME,
+                            np.where((vehicle_first > 0) == a_is_vehicle, PRIORITY_A, PRIORITY_B))
+        kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
+        v = np.concatenate([np.maximum(frame.v_lon, 0.0), np.maximum(persons.speed, 0.0)])
+        p_a, p_b = users.params.take(ra), users.params.take(rb)
+        safety = intersection_safety(v[ra], enter_a, exit_a, length_a, p_a, v[rb], enter_b, exit_b, length_b, p_b,
+                                     priority, True)
+        rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
+                 safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
+        a_yields = (priority == PRIORITY_B) | ((priority == PRIORITY_SAME) &
+                                               (enter_a - safety.need_a <= enter_b - safety.need_b))
+        n = len(ra)
+        nan = np.full(n, np.nan)
+        return PairSituations(
+            a=ra, b=rb, kind=kind, a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
+            lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v[ra], v_lon_b=v[rb],
+            v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, safety.need_a, safety.need_b),
+            lat_d_min=nan, lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules,
+            priority=priority.astype(np.int8),
+            in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
+            area=model.area_id[k], enter_a=enter_a, enter_b=enter_b)
+
+    def _on_crossings(self, persons: PersonSnapshot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(person row, crossing, s [m] along the crossing's centre line, walking forward along it) of every person
+        on a crossing, and of every person within STEP_ON_RADIUS of a crossing's end who faces along it (s < 0 before
+        its start, > its length past its end). Which crossing a person takes is not known (an FCD has no routes of
+        persons): its position and heading tell, the same way online and offline."""
+        model = self.crossings
+        at = np.minimum(np.searchsorted(model.edge_ids, persons.edge_id), len(model.edge_ids) - 1)
+        on = np.flatnonzero(model.edge_ids[at] == persons.edge_id)
+        crossing = at[on]
+        s, _, lane_heading = self.network.frenet(model.lane[crossing], persons.x[on], persons.y[on])
+        forward = np.cos(wrap_angle(persons.heading[on] - lane_heading)) >= 0.0
+        # Persons near a crossing's end, facing along it (within STEP_ON_ANGLE of the way they would walk it) and
+        # not past it: they may step onto it. One walking elsewhere (along the kerb, onto the other crossing of a
+        # corner) faces 90° away.
+        entries = self._entries
+        entry_crossing, entry_forward, point, along = entries.crossing, entries.forward, entries.point, entries.along
+        near = entries.tree.query_ball_point(np.column_stack([persons.x, persons.y]), STEP_ON_RADIUS) \
+            if entries.tree is not None else [[] for _ in range(len(persons))]
+        count = np.fromiter(map(len, near), int, len(persons))
+        who = np.repeat(np.arange(len(persons)), count)
+        e = np.fromiter(itertools.chain.from_iterable(near), int, int(count.sum()))
+        c = entry_crossing[e]
+        dx, dy = point[e, 0] - persons.x[who], point[e, 1] - persons.y[who]
+        facing = np.cos(wrap_angle(persons.heading[who] - along[e])) > np.cos(STEP_ON_ANGLE)
+        ahead = dx * np.cos(along[e]) + dy * np.sin(along[e]) > -0.5 * persons.length[who]
+        towards = facing & ahead & (model.edge_ids[c] != persons.edge_id[who])
+        distance = np.hypot(dx, dy)
+        s_at = np.where(entry_forward[e], -distance, entries.length[e] + distance)
+        return (np.concatenate([on, who[towards]]), np.concatenate([crossing, c[towards]]),
+                np.concatenate([s, s_at[towards]]), np.concatenate([forward, entry_forward[e][towards]]))
+
+    def _priority(self, tls_states: dict[str, str] | None, link: np.ndarray, crossing: np.ndarray,
+                  static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(+1: the vehicle has priority, -1: the person, 0: neither; whether the signals decided it). The signals
+        decide where both links are signalised and their ranks differ, else the junction's logic (``static``); a
+        signalised link whose state is unknown gives no priority either way."""
+        vehicle_rank = self.junctions.signal_ranks(tls_states)[link]
+        person_rank = self.crossings.signal_ranks(tls_states)[crossing]
+        index = self.crossings.tls_index[crossing]
+        by_signal = (vehicle_rank >= 0) & (person_rank >= 0) & (vehicle_rank != person_rank)
+        unknown = ((self.junctions.link_tls_index[link] >= 0) & (vehicle_rank < 0)) | ((index >= 0) &
+                                                                                        (person_rank < 0))
+        first = np.where(unknown, 0, static)
+        return np.where(by_signal, np.sign(vehicle_rank - person_rank), first).astype(int), by_signal
