@@ -13,6 +13,7 @@ on a vehicle lane: that case (the paper's heading-change wedge) is not evaluated
 """
 from __future__ import annotations
 
+import collections
 import itertools
 from dataclasses import dataclass
 
@@ -35,6 +36,8 @@ from .situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, PairS
 # persons turn towards a crossing on the walking area before they step on; one walking along the kerb or towards
 # the other crossing of a corner faces 90° away)
 STEP_ON_ANGLE = np.radians(60.0)
+SPEED_WINDOW_S = 0.5  # [s] persons' accelerations are speed changes over this long (a person's ρ; _accelerations)
+TIME_EPS = 1e-6  # [s]
 STEP_ON_RADIUS = 10.0  # [m] persons this close to a crossing's end are in its situations (7 s at 1.4 m/s)
 
 
@@ -61,25 +64,18 @@ class PersonAudit:
     def __init__(self, network: RoadNetwork, junctions: JunctionModel, crossings: CrossingModel):
         self.network, self.junctions, self.crossings = network, junctions, crossings
         self._entries = CrossingEntries.of(crossings, network.shapes)
-        self._prev_ids, self._prev_speed = np.zeros(0, dtype=str), np.zeros(0)  # sorted by id
-        self._prev_time: float | None = None
+        # The persons' speeds at the steps of the last SPEED_WINDOW_S: (time [s], ids sorted, speeds [m/s]).
+        self._speeds: collections.deque[tuple[float, np.ndarray, np.ndarray]] = collections.deque()
         self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk (not audited)
 
     def users(self, snapshot: WorldSnapshot, params: RssParamArrays, person_params: RssParamArrays) -> RoadUsers:
         """The step's road users: ``snapshot``'s vehicles with their ``params``, then its persons with
-        ``person_params`` and accelerations from their speed differences [m/s²] (0 for a person not seen the step
-        before)."""
+        ``person_params`` and their accelerations (:meth:`_accelerations`)."""
         persons = snapshot.persons
         if persons is None or not len(persons):
-            self._prev_ids, self._prev_speed, self._prev_time = np.zeros(0, dtype=str), np.zeros(0), snapshot.time
+            self._speeds.clear()
             return RoadUsers(snapshot.ids, snapshot.vclass, snapshot.accel, snapshot.speed, params, len(snapshot))
-        accel = np.zeros(len(persons))
-        if self._prev_time is not None and len(self._prev_ids):
-            pos = np.minimum(np.searchsorted(self._prev_ids, persons.ids), len(self._prev_ids) - 1)
-            seen = self._prev_ids[pos] == persons.ids
-            accel = np.where(seen, (persons.speed - self._prev_speed[pos]) / (snapshot.time - self._prev_time), 0.0)
-        order = np.argsort(persons.ids)
-        self._prev_ids, self._prev_speed, self._prev_time = persons.ids[order], persons.speed[order], snapshot.time
+        accel = self._accelerations(snapshot.time, persons)
         off_road = np.isin(persons.edge_id, self.crossings.walkway_edges)
         if not off_road.all():
             self.on_vehicle_lanes.update(persons.ids[~off_road].tolist())
@@ -87,6 +83,26 @@ class PersonAudit:
                          np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
                          np.concatenate([snapshot.accel, accel]), np.concatenate([snapshot.speed, persons.speed]),
                          _stacked(params, person_params), len(snapshot))
+
+    def _accelerations(self, time: float, persons: PersonSnapshot) -> np.ndarray:
+        """[m/s²] each person's speed change over the last SPEED_WINDOW_S (over the steps it was seen in, 0 for a
+        person first seen now). SUMO's persons have no acceleration: their speed jitters from step to step by up to
+        ±0.1 m/s (the striping model's dawdling), ±2 m/s² as a difference over one 0.1 s step, as much as a person's
+        whole a_acc; over 0.5 s (a person's ρ) it is ±0.4 m/s²."""
+        order = np.argsort(persons.ids)
+        self._speeds.append((time, persons.ids[order], persons.speed[order]))
+        while len(self._speeds) > 1 and self._speeds[1][0] <= time - SPEED_WINDOW_S + TIME_EPS:
+            self._speeds.popleft()
+        accel = np.zeros(len(persons))
+        left = np.ones(len(persons), dtype=bool)  # not yet found at an earlier step
+        for then, ids, speed in self._speeds:  # oldest first: the longest span each person was seen over
+            if then >= time:
+                break
+            pos = np.minimum(np.searchsorted(ids, persons.ids), len(ids) - 1)
+            hit = left & (ids[pos] == persons.ids)
+            accel[hit] = (persons.speed[hit] - speed[pos[hit]]) / (time - then)
+            left &= ~hit
+        return accel
 
     def situations(self, snapshot: WorldSnapshot, frame: VehicleFrame, users: RoadUsers,
                    horizon: float) -> PairSituations | None:
@@ -96,7 +112,7 @@ class PersonAudit:
         persons, model = snapshot.persons, self.crossings
         if persons is None or not len(persons) or not len(model):
             return None
-        walking, crossing, s, forward = self._on_crossings(persons)
+        walking, crossing, s, forward, v_along = self._on_crossings(persons)
         if not walking.size:
             return None
         # Vehicles' entries into links, and their crossing areas with a person on that crossing.
@@ -113,15 +129,15 @@ class PersonAudit:
         r, p = rows[entry], walking[w]
         length = snapshot.length[r]
         enter_v, exit_v = model.link_start[k] - pos[entry], model.link_end[k] - pos[entry] + length
-        s_w, fwd, p_length = s[w], forward[w], persons.length[p]
+        s_w, fwd, p_length, v_p = s[w], forward[w], persons.length[p], v_along[w]
         enter_p = np.where(fwd, model.cross_start[k] - s_w, s_w - model.cross_end[k])
         exit_p = np.where(fwd, model.cross_end[k] - s_w, s_w - model.cross_start[k]) + p_length
         keep = (exit_v > 0.0) & (exit_p > 0.0)
         if not keep.any():
             return None
         r, p, k, link = r[keep], p[keep], k[keep], links[entry[keep]]
-        enter_v, exit_v, enter_p, exit_p, length, p_length = (x[keep] for x in (enter_v, exit_v, enter_p, exit_p,
-                                                                                length, p_length))
+        enter_v, exit_v, enter_p, exit_p, length, p_length, v_p = (x[keep] for x in (
+            enter_v, exit_v, enter_p, exit_p, length, p_length, v_p))
         vehicle_first, by_signal = self._priority(snapshot.tls_states, link, model.crossing[k], model.static_priority[k])
         # Name each situation by id order (a < b); the person's row comes after the vehicles'.
         person_row = users.vehicles + p
@@ -134,9 +150,10 @@ class PersonAudit:
         priority = np.where(vehicle_first == 0, PRIORITY_SAME,
                             np.where((vehicle_first > 0) == a_is_vehicle, PRIORITY_A, PRIORITY_B))
         kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
-        v = np.concatenate([np.maximum(frame.v_lon, 0.0), np.maximum(persons.speed, 0.0)])
+        v_v = np.maximum(frame.v_lon[r], 0.0)
+        v_a, v_b = pick(v_v, v_p), pick(v_p, v_v)
         p_a, p_b = users.params.take(ra), users.params.take(rb)
-        safety = intersection_safety(v[ra], enter_a, exit_a, length_a, p_a, v[rb], enter_b, exit_b, length_b, p_b,
+        safety = intersection_safety(v_a, enter_a, exit_a, length_a, p_a, v_b, enter_b, exit_b, length_b, p_b,
                                      priority, True)
         rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
                  safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
@@ -146,15 +163,17 @@ class PersonAudit:
         nan = np.full(n, np.nan)
         return PairSituations(
             a=ra, b=rb, kind=kind, a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
-            lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v[ra], v_lon_b=v[rb],
+            lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
             v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, safety.need_a, safety.need_b),
             lat_d_min=nan, lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules,
             priority=priority.astype(np.int8),
             in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
             area=model.area_id[k], enter_a=enter_a, enter_b=enter_b)
 
-    def _on_crossings(self, persons: PersonSnapshot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(person row, crossing, s [m] along the crossing's centre line, walking forward along it) of every person
+    def _on_crossings(self, persons: PersonSnapshot
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(person row, crossing, s [m] along the crossing's centre line, walking forward along it, speed along
+        that walking direction [m/s], ≥ 0) of every person
         on a crossing, and of every person within STEP_ON_RADIUS of a crossing's end who faces along it (s < 0 before
         its start, > its length past its end). Which crossing a person takes is not known (an FCD has no routes of
         persons): its position and heading tell, the same way online and offline."""
@@ -163,7 +182,8 @@ class PersonAudit:
         on = np.flatnonzero(model.edge_ids[at] == persons.edge_id)
         crossing = at[on]
         s, _, lane_heading = self.network.frenet(model.lane[crossing], persons.x[on], persons.y[on])
-        forward = np.cos(wrap_angle(persons.heading[on] - lane_heading)) >= 0.0
+        cos_on = np.cos(wrap_angle(persons.heading[on] - lane_heading))
+        forward = cos_on >= 0.0
         # Persons near a crossing's end, facing along it (within STEP_ON_ANGLE of the way they would walk it) and
         # not past it: they may step onto it. One walking elsewhere (along the kerb, onto the other crossing of a
         # corner) faces 90° away.
@@ -176,13 +196,16 @@ class PersonAudit:
         e = np.fromiter(itertools.chain.from_iterable(near), int, int(count.sum()))
         c = entry_crossing[e]
         dx, dy = point[e, 0] - persons.x[who], point[e, 1] - persons.y[who]
-        facing = np.cos(wrap_angle(persons.heading[who] - along[e])) > np.cos(STEP_ON_ANGLE)
+        cos_at = np.cos(wrap_angle(persons.heading[who] - along[e]))
+        facing = cos_at > np.cos(STEP_ON_ANGLE)
         ahead = dx * np.cos(along[e]) + dy * np.sin(along[e]) > -0.5 * persons.length[who]
         towards = facing & ahead & (model.edge_ids[c] != persons.edge_id[who])
         distance = np.hypot(dx, dy)
         s_at = np.where(entry_forward[e], -distance, entries.length[e] + distance)
         return (np.concatenate([on, who[towards]]), np.concatenate([crossing, c[towards]]),
-                np.concatenate([s, s_at[towards]]), np.concatenate([forward, entry_forward[e][towards]]))
+                np.concatenate([s, s_at[towards]]), np.concatenate([forward, entry_forward[e][towards]]),
+                np.maximum(np.concatenate([persons.speed[on] * np.abs(cos_on), persons.speed[who[towards]] *
+                                           cos_at[towards]]), 0.0))
 
     def _priority(self, tls_states: dict[str, str] | None, link: np.ndarray, crossing: np.ndarray,
                   static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
