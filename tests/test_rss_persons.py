@@ -172,9 +172,10 @@ def test_on_green_for_the_person_a_car_that_drives_on_is_responsible(tmp_path):
 
 
 def test_utopia_of_the_pedestrian_scenario(tmp_path):
-    """The shipped scenario's first 45 s (SUMO's own well-behaved persons and cars, half a signal cycle: persons
-    over the north-south crossings while the cars wait, right-turners yielding to them): persons are in junction
-    situations with the cars, some of them dangerous, and no one is responsible in any of them; no collision."""
+    """The shipped scenario's first 45 s: SUMO's own well-behaved persons (waiting at red, walking on green) are in
+    junction situations with the cars, some dangerous, and no person is ever responsible. Where anyone is, it is a
+    turning car that owed a person with priority braking and did not brake (SUMO's gap acceptance lets a right-
+    or left-turner pass a person RSS says it must wait for: 7 of 136 person episodes in the scenario's 120 s)."""
     spec = replace(load_scenario(SCENARIOS / "intersection_tls_peds.toml"), duration_s=45.0)
     auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "utopia")
     persons_seen = 0
@@ -185,7 +186,14 @@ def test_utopia_of_the_pedestrian_scenario(tmp_path):
             auditor.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
                                        for c in session.new_collisions])
     result = auditor.finish()
-    with_person = result.episodes[(result.episodes.class_a == "person") | (result.episodes.class_b == "person")]
-    assert persons_seen >= 4 and len(with_person) >= 5
-    assert with_person.responsible.eq("none").all(), with_person[["episode_key", "responsible"]]
+    episodes = result.episodes
+    with_person = episodes[(episodes.class_a == "person") | (episodes.class_b == "person")]
+    assert persons_seen >= 4 and len(with_person) >= 20
+    person_is_a = with_person.class_a == "person"
+    person_blamed = (person_is_a & with_person.responsible.isin(["a", "both"])) | \
+        (~person_is_a & with_person.responsible.isin(["b", "both"]))
+    assert not person_blamed.any(), with_person[person_blamed]
+    assert not (result.violations.vehicle_class == "person").any()
+    blamed = with_person[with_person.responsible != "none"]
+    assert (blamed.owed_a == "int:brake-min").all() and (blamed.class_a != "person").all()  # the cars, owing braking
     assert len(result.collisions) == 0
