@@ -14,8 +14,9 @@ BIKE_LENGTH, CAR_LENGTH = 1.6, 5.0  # [m] SUMO's DEFAULT_BIKETYPE and DEFAULT_VE
 
 
 def _vehicle(vid: str, vtype: str, front_x: float, y: float, lane: str, speed: float) -> str:
-    return (f'<vehicle id="{vid}" type="{vtype}" x="{front_x:.2f}" y="{y:.2f}" angle="90.00" speed="{speed:.2f}" '
-            f'pos="{front_x:.2f}" lane="{lane}" posLat="0.00" acceleration="0.00" speedLat="0.00"/>')
+    return (f'<vehicle id="{vid}" type="{vtype}" x="{front_x:.2f}" y="{y:.2f}" angle="90.00" '
+            f'speed="{speed:.2f}" pos="{front_x:.2f}" lane="{lane}" posLat="0.00" acceleration="0.00" '
+            'speedLat="0.00"/>')
 
 
 def test_bicycles_have_their_own_parameters_and_class(tmp_path):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import collections
 import itertools
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +79,13 @@ class PersonAudit:
         accel = self._accelerations(snapshot.time, persons)
         off_road = np.isin(persons.edge_id, self.crossings.walkway_edges)
         if not off_road.all():
+            if not self.on_vehicle_lanes:
+                k = int(np.flatnonzero(~off_road)[0])
+                first, edge = str(persons.ids[k]), str(persons.edge_id[k])
+                warnings.warn(f"persons walk on vehicle lanes (edges without a sidewalk; first {first!r} on {edge!r} "
+                              f"at {snapshot.time:g} s): their situations with the vehicles there (the paper's "
+                              "jaywalking wedge, rss.md §10 (ii)) are not evaluated; persons on crossings are",
+                              stacklevel=3)
             self.on_vehicle_lanes.update(persons.ids[~off_road].tolist())
         return RoadUsers(np.concatenate([snapshot.ids, persons.ids]),
                          np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
@@ -138,7 +146,8 @@ class PersonAudit:
         r, p, k, link = r[keep], p[keep], k[keep], links[entry[keep]]
         enter_v, exit_v, enter_p, exit_p, length, p_length, v_p = (x[keep] for x in (
             enter_v, exit_v, enter_p, exit_p, length, p_length, v_p))
-        vehicle_first, by_signal = self._priority(snapshot.tls_states, link, model.crossing[k], model.static_priority[k])
+        vehicle_first, by_signal = self._priority(snapshot.tls_states, link, model.crossing[k],
+                                                  model.static_priority[k])
         # Name each situation by id order (a < b); the person's row comes after the vehicles'.
         person_row = users.vehicles + p
         a_is_vehicle = snapshot.ids[r] < persons.ids[p]
