@@ -13,7 +13,6 @@ import numpy as np
 import pandas as pd
 
 from ..files import csv_writer, json_text, make_folder, write_file_set
-from ..road.crossings import CrossingModel
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable
@@ -170,11 +169,8 @@ class Auditor:
         written. ``evasive``: rule 5's settings (docs/rss.md; off unless ``enabled``)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
-        self._persons = PersonAudit(network, self.junctions, CrossingModel.from_file(network.path, network,
-                                                                                      self.junctions))
-        # Area number: index (the junctions' conflict areas and the crossings' areas with vehicle links).
-        self._area_ids = np.array(sorted([c.id for c in self.junctions.conflicts] +
-                                         self._persons.crossings.area_id.tolist()), dtype=str)
+        self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
+        self._persons = PersonAudit(network, self.junctions)  # the crossings' areas: numbers after these
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self.record_states = record_states
@@ -210,13 +206,15 @@ class Auditor:
         horizon = 2.0 * float(frame.reach.max(initial=0.0)) + 20.0
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions, horizon=horizon) \
             if self.junctions.conflicts else None
+        number = np.searchsorted(self._area_ids, crossing.area.astype(str)) if crossing is not None else None
         walking = self._persons.situations(snapshot, frame, users, horizon)
         if walking is not None:  # persons on crossings: junction situations of their own areas
+            walking_number = len(self._area_ids) + self._persons.area_numbers(walking.area)
             crossing = walking if crossing is None else PairSituations.concat([crossing, walking])
+            number = walking_number if number is None else np.concatenate([number, walking_number])
         areas = area_number = None
         if crossing is not None and len(crossing):
             crossing_keys = ((uid[crossing.a] << 32) | uid[crossing.b]) | INTERSECTION_KEY
-            number = np.searchsorted(self._area_ids, crossing.area.astype(str))
             # Several conflict areas per pair: the pair is dangerous if any is; keep the most critical one
             # (dangerous first, then the yielding car closest to needing to stop), and remember every area's rules.
             margin = crossing.lon_gap - crossing.lon_d_min

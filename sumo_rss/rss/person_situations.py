@@ -17,6 +17,7 @@ import collections
 import itertools
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -62,12 +63,29 @@ def _stacked(a: RssParamArrays, b: RssParamArrays) -> RssParamArrays:
 class PersonAudit:
     """Person rows and person situations of each step of one run (time order)."""
 
-    def __init__(self, network: RoadNetwork, junctions: JunctionModel, crossings: CrossingModel):
-        self.network, self.junctions, self.crossings = network, junctions, crossings
-        self._entries = CrossingEntries.of(crossings, network.shapes)
+    def __init__(self, network: RoadNetwork, junctions: JunctionModel):
+        self.network, self.junctions = network, junctions
         # The persons' speeds at the steps of the last SPEED_WINDOW_S: (time [s], ids sorted, speeds [m/s]).
         self._speeds: collections.deque[tuple[float, np.ndarray, np.ndarray]] = collections.deque()
         self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk (not audited)
+
+    @cached_property
+    def crossings(self) -> CrossingModel:
+        """The network's crossings (read when the first person appears: an audit without persons never needs
+        them)."""
+        return CrossingModel.from_file(self.network.path, self.network, self.junctions)
+
+    @cached_property
+    def _entries(self) -> CrossingEntries:
+        return CrossingEntries.of(self.crossings, self.network.shapes)
+
+    @cached_property
+    def _sorted_area_ids(self) -> np.ndarray:
+        return np.sort(self.crossings.area_id.astype(str))
+
+    def area_numbers(self, area: np.ndarray) -> np.ndarray:
+        """A number per crossing area id of ``area``: its rank among the network's (fixed for the run)."""
+        return np.searchsorted(self._sorted_area_ids, area.astype(str))
 
     def users(self, snapshot: WorldSnapshot, params: RssParamArrays, person_params: RssParamArrays) -> RoadUsers:
         """The step's road users: ``snapshot``'s vehicles with their ``params``, then its persons with
