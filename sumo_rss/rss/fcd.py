@@ -218,7 +218,7 @@ class FcdReader:
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
-        self._warned_persons = False  # about containers, which are not audited
+        self._warned_containers = False  # about containers, which are not audited
         self.people: set[str] = set()  # ids of the persons and containers in the file so far
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
@@ -336,8 +336,8 @@ class FcdReader:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
         where = f"{self.path}, time step {time} s"
         self.people.update(step.unaudited)
-        if step.unaudited and not self._warned_persons:
-            self._warned_persons = True
+        if step.unaudited and not self._warned_containers:
+            self._warned_containers = True
             warnings.warn(f"{where}: containers are not audited (the RSS model covers vehicles and persons; a "
                           "collision with one is listed with blamed 'none')", stacklevel=3)
         try:
