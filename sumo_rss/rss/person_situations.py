@@ -8,14 +8,12 @@ the responses owed and the blame follow as for two cars.
 
 Persons on walking areas and sidewalks form no situation with vehicles (the paper's "vehicles need not worry about
 pedestrians on the sidewalk"); persons are not paired with persons. A person on an edge without a sidewalk walks
-on a vehicle lane: that case (the paper's heading-change wedge) is not evaluated, and the audit says so
-(:meth:`PersonAudit.on_vehicle_lanes`).
+on a vehicle lane: :mod:`.jaywalking` (the paper's heading-change wedge).
 """
 from __future__ import annotations
 
 import collections
 import itertools
-import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -29,6 +27,8 @@ from ..road.network import RoadNetwork
 from ..road_users import PERSON_CLASS
 from ..sim.persons import PersonSnapshot
 from ..sim.snapshot import WorldSnapshot
+from .jaywalking import AREA_ID as JAYWALK_AREA
+from .jaywalking import jaywalking_situations
 from .intersection import (KIND_SIGNAL, KIND_SAME, KIND_YIELD, PRIORITY_A, PRIORITY_B, PRIORITY_SAME,
                            intersection_safety, junction_entries, next_route_edge)
 from .params import PARAM_NAMES, RssParamArrays
@@ -67,7 +67,8 @@ class PersonAudit:
         self.network, self.junctions = network, junctions
         # The persons' speeds at the steps of the last SPEED_WINDOW_S: (time [s], ids sorted, speeds [m/s]).
         self._speeds: collections.deque[tuple[float, np.ndarray, np.ndarray]] = collections.deque()
-        self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk (not audited)
+        self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk
+        self._on_road = np.zeros(0, dtype=bool)  # per person of the step: on a vehicle lane
 
     @cached_property
     def crossings(self) -> CrossingModel:
@@ -84,8 +85,11 @@ class PersonAudit:
         return np.sort(self.crossings.area_id.astype(str))
 
     def area_numbers(self, area: np.ndarray) -> np.ndarray:
-        """A number per crossing area id of ``area``: its rank among the network's (fixed for the run)."""
-        return np.searchsorted(self._sorted_area_ids, area.astype(str))
+        """A number per area id of ``area`` (fixed for the run): a crossing area's rank among the network's, one
+        more for a person on a vehicle lane."""
+        area = area.astype(str)
+        return np.where(np.char.endswith(area, ":" + JAYWALK_AREA), len(self._sorted_area_ids),
+                        np.searchsorted(self._sorted_area_ids, area))
 
     def users(self, snapshot: WorldSnapshot, params: RssParamArrays, person_params: RssParamArrays) -> RoadUsers:
         """The step's road users: ``snapshot``'s vehicles with their ``params``, then its persons with
@@ -96,14 +100,8 @@ class PersonAudit:
             return RoadUsers(snapshot.ids, snapshot.vclass, snapshot.accel, snapshot.speed, params, len(snapshot))
         accel = self._accelerations(snapshot.time, persons)
         off_road = np.isin(persons.edge_id, self.crossings.walkway_edges)
+        self._on_road = ~off_road
         if not off_road.all():
-            if not self.on_vehicle_lanes:
-                k = int(np.flatnonzero(~off_road)[0])
-                first, edge = str(persons.ids[k]), str(persons.edge_id[k])
-                warnings.warn(f"persons walk on vehicle lanes (edges without a sidewalk; first {first!r} on {edge!r} "
-                              f"at {snapshot.time:g} s): their situations with the vehicles there (the paper's "
-                              "jaywalking wedge, rss.md §10 (ii)) are not evaluated; persons on crossings are",
-                              stacklevel=3)
             self.on_vehicle_lanes.update(persons.ids[~off_road].tolist())
         return RoadUsers(np.concatenate([snapshot.ids, persons.ids]),
                          np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
@@ -132,6 +130,20 @@ class PersonAudit:
 
     def situations(self, snapshot: WorldSnapshot, frame: VehicleFrame, users: RoadUsers,
                    horizon: float) -> PairSituations | None:
+        """The step's person situations (rows of ``users``; None without any): on crossings
+        (:meth:`_crossing_situations`) and on vehicle lanes (:func:`~.jaywalking.jaywalking_situations`)."""
+        persons = snapshot.persons
+        if persons is None or not len(persons):
+            return None
+        parts = [self._crossing_situations(snapshot, frame, users, horizon)]
+        if self._on_road.any():
+            parts.append(jaywalking_situations(persons, self._on_road, frame, snapshot.ids, snapshot.length,
+                                               self.network, users.params, users.vehicles))
+        parts = [part for part in parts if part is not None]
+        return parts[0] if len(parts) == 1 else PairSituations.concat(parts) if parts else None
+
+    def _crossing_situations(self, snapshot: WorldSnapshot, frame: VehicleFrame, users: RoadUsers,
+                             horizon: float) -> PairSituations | None:
         """Every (vehicle, person on a crossing) pair whose paths meet in a crossing area that neither has left,
         one situation per pair and area (rows of ``users``; None without any). Vehicles within ``horizon`` [m] of
         a junction take part, as in :func:`~sumo_rss.rss.intersection.intersection_situations`."""
