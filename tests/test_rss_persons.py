@@ -197,3 +197,26 @@ def test_utopia_of_the_pedestrian_scenario(tmp_path):
     blamed = with_person[with_person.responsible != "none"]
     assert (blamed.owed_a == "int:brake-min").all() and (blamed.class_a != "person").all()  # the cars, owing braking
     assert len(result.collisions) == 0
+
+
+def test_online_and_offline_audits_agree_with_persons(tmp_path):
+    """25 s of the pedestrian scenario audited as it runs and from its FCD (persons as SUMO writes them): the same
+    episodes, violations and collisions, with persons in junction situations."""
+    spec = replace(load_scenario(SCENARIOS / "intersection_tls_peds.toml"), duration_s=25.0)
+    network = RoadNetwork.from_file(spec.net_file)
+    online = Auditor(network, param_resolver(spec), "peds")
+    run_dir = tmp_path / "run"
+    with Session(spec, run_dir, fcd=True) as session:
+        while not session.finished:
+            snapshot = session.step()
+            online.observe(snapshot, [CollisionInput(c.time, c.collider, c.victim, c.kind)
+                                      for c in session.new_collisions])
+    on = online.finish()
+    vehicles = read_vehicle_info([*spec.demand.route_files, run_dir / "routes.rou.xml"], spec.net_file)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the signal states come from the net's (static) program, as SUMO ran it
+        off = audit_fcd(run_dir / "fcd.xml", network, param_resolver(spec), vehicles=vehicles,
+                        collisions=run_dir / "collisions.xml", run_id="peds")
+    assert ((on.episodes.class_a == "person") | (on.episodes.class_b == "person")).sum() >= 3
+    for name in ("episodes", "violations", "collisions"):
+        assert getattr(on, name).to_csv(index=False) == getattr(off, name).to_csv(index=False), name
