@@ -47,11 +47,6 @@ class CrossingModel:
     def __len__(self) -> int:
         return int(self.link.shape[0])
 
-    @property
-    def crossing_of_edge(self) -> dict[str, int]:
-        """Crossing number by crossing edge id."""
-        return dict(zip(self.edge_ids.tolist(), range(len(self.edge_ids))))
-
     def areas_of_links(self, links: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(owner, k): every crossing area k of each of ``links`` (owner: the position in ``links``)."""
         start = np.searchsorted(self.link, links, side="left")

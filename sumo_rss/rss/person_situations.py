@@ -54,6 +54,7 @@ class RoadUsers:
     speed: np.ndarray  # [m/s]
     params: RssParamArrays
     vehicles: int  # rows [0, vehicles) are the snapshot's vehicles
+    on_road: np.ndarray  # per person: walking on a vehicle lane (an edge without a sidewalk)
 
 
 def _stacked(a: RssParamArrays, b: RssParamArrays) -> RssParamArrays:
@@ -67,8 +68,6 @@ class PersonAudit:
         self.network, self.junctions = network, junctions
         # The persons' speeds at the steps of the last SPEED_WINDOW_S: (time [s], ids sorted, speeds [m/s]).
         self._speeds: collections.deque[tuple[float, np.ndarray, np.ndarray]] = collections.deque()
-        self.on_vehicle_lanes: set[str] = set()  # persons seen walking on an edge without a sidewalk
-        self._on_road = np.zeros(0, dtype=bool)  # per person of the step: on a vehicle lane
 
     @cached_property
     def crossings(self) -> CrossingModel:
@@ -97,16 +96,14 @@ class PersonAudit:
         persons = snapshot.persons
         if persons is None or not len(persons):
             self._speeds.clear()
-            return RoadUsers(snapshot.ids, snapshot.vclass, snapshot.accel, snapshot.speed, params, len(snapshot))
+            return RoadUsers(snapshot.ids, snapshot.vclass, snapshot.accel, snapshot.speed, params, len(snapshot),
+                             np.zeros(0, dtype=bool))
         accel = self._accelerations(snapshot.time, persons)
-        off_road = np.isin(persons.edge_id, self.crossings.walkway_edges)
-        self._on_road = ~off_road
-        if not off_road.all():
-            self.on_vehicle_lanes.update(persons.ids[~off_road].tolist())
         return RoadUsers(np.concatenate([snapshot.ids, persons.ids]),
                          np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
                          np.concatenate([snapshot.accel, accel]), np.concatenate([snapshot.speed, persons.speed]),
-                         _stacked(params, person_params), len(snapshot))
+                         _stacked(params, person_params), len(snapshot),
+                         ~np.isin(persons.edge_id, self.crossings.walkway_edges))
 
     def _accelerations(self, time: float, persons: PersonSnapshot) -> np.ndarray:
         """[m/s²] each person's speed change over the last SPEED_WINDOW_S (over the steps it was seen in, 0 for a
@@ -136,8 +133,8 @@ class PersonAudit:
         if persons is None or not len(persons):
             return None
         parts = [self._crossing_situations(snapshot, frame, users, horizon)]
-        if self._on_road.any():
-            parts.append(jaywalking_situations(persons, self._on_road, frame, snapshot.ids, snapshot.length,
+        if users.on_road.any():
+            parts.append(jaywalking_situations(persons, users.on_road, frame, snapshot.ids, snapshot.length,
                                                self.network, users.params, users.vehicles))
         parts = [part for part in parts if part is not None]
         return parts[0] if len(parts) == 1 else PairSituations.concat(parts) if parts else None
