@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import NETWORKS
+from conftest import NETWORKS, write_scenario
+from sumo_rss import load_scenario
+from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, ParamResolver
 from sumo_rss.rss.fcd import FcdReader, read_vehicle_info
 from sumo_rss.rss.params import BICYCLE_PARAMS, PERSON_PARAMS, RssParams
+from sumo_rss.sim.session import Session
 
 HIGHWAY = NETWORKS / "highway" / "highway.net.xml"
 BIKE_LENGTH, CAR_LENGTH = 1.6, 5.0  # [m] SUMO's DEFAULT_BIKETYPE and DEFAULT_VEHTYPE
@@ -73,3 +76,26 @@ def test_bicycle_and_person_rows_under_each_preset():
     # vType overrides still apply to a bicycle's type.
     assert ParamResolver("ad_rss", vtype_overrides={"bike": {"response_time": 0.7}}).get(
         "bicycle", "bike").response_time == 0.7
+
+
+def test_a_live_run_tells_bicycles_by_their_vclass(tmp_path, valid_scenario):
+    """SUMO's bicycles in a session (a route file's vType of vClass bicycle) are class 'bicycle' in the snapshots
+    and get the bicycle row; the cars stay 'background'."""
+    (tmp_path / "bikes.rou.xml").write_text(
+        '<routes><vType id="bike" vClass="bicycle"/><flow id="bikes" type="bike" begin="0" end="10" number="3" '
+        'from="hw0" to="hw2" departLane="0"/></routes>')
+    valid_scenario["demand"]["route_files"] = ["bikes.rou.xml"]
+    valid_scenario["duration_s"] = 12.0
+    del valid_scenario["ego"]
+    spec = load_scenario(write_scenario(tmp_path, valid_scenario))
+    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec))
+    classes: dict[str, str] = {}
+    with Session(spec) as session:
+        while not session.finished:
+            snapshot = session.step()
+            classes.update(zip(snapshot.ids.tolist(), snapshot.vclass.tolist()))
+            auditor.observe(snapshot)
+    bikes = {v: c for v, c in classes.items() if v.startswith("bikes.")}
+    assert len(bikes) == 3 and set(bikes.values()) == {"bicycle"}
+    assert {c for v, c in classes.items() if not v.startswith("bikes.")} == {"background"}
+    assert auditor.finish().params["bicycle/bike"] == BICYCLE_PARAMS.to_dict()
