@@ -18,9 +18,9 @@ from ..angles import wrap_angle
 from ..road.link_pairs import expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.persons import PersonSnapshot
-from .intersection import KIND_YIELD, PRIORITY_A, PRIORITY_B, intersection_safety
 from .params import RssParamArrays
-from .situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, PairSituations, VehicleFrame
+from .person_pairs import Side, vehicle_person_situations
+from .situations import PairSituations, VehicleFrame
 
 WEDGE_HALF_ANGLE = np.radians(45.0)  # [rad] how far a person may turn from its heading (an assumption: docs/rss.md)
 WEDGE_RAYS = 9  # directions sampled across the wedge
@@ -70,29 +70,8 @@ def jaywalking_situations(persons: PersonSnapshot, on_road: np.ndarray, frame: V
     if not keep.any():
         return None
     r, p, enter_v, exit_v, enter_p, exit_p = (x[keep] for x in (r, p, enter_v, exit_v, enter_p, exit_p))
-    person_row = vehicles + p
-    a_is_vehicle = ids[r] < persons.ids[p]
-    pick = lambda on_vehicle, on_person: np.where(a_is_vehicle, on_vehicle, on_person)  # noqa: E731
-    ra, rb = pick(r, person_row), pick(person_row, r)
-    v_v = np.maximum(frame.v_lon[r], 0.0)
-    v_p = persons.speed[p]
-    v_a, v_b = pick(v_v, v_p), pick(v_p, v_v)
-    enter_a, enter_b, exit_a, exit_b = pick(enter_v, enter_p), pick(enter_p, enter_v), pick(exit_v, exit_p), \
-        pick(exit_p, exit_v)
-    priority = np.where(a_is_vehicle, PRIORITY_A, PRIORITY_B)  # the vehicle's
-    p_a, p_b = params.take(ra), params.take(rb)
-    safety = intersection_safety(v_a, enter_a, exit_a, pick(length[r], persons.length[p]), p_a, v_b, enter_b, exit_b,
-                                 pick(persons.length[p], length[r]), p_b, priority, True)
-    rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
-             safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
-    n = len(ra)
-    nan = np.full(n, np.nan)
-    return PairSituations(
-        a=ra, b=rb, kind=np.full(n, KIND_YIELD), a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
-        lon_gap=np.where(a_is_vehicle, enter_b, enter_a), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
-        v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_is_vehicle, safety.need_b, safety.need_a),
-        lat_d_min=nan, lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules,
-        priority=priority.astype(np.int8),
-        in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
-        area=np.char.add(network.edge_ids[frame.edge[r]].astype(str), ":" + AREA_ID).astype(object),
-        enter_a=enter_a, enter_b=enter_b)
+    area = np.char.add(network.edge_ids[frame.edge[r]].astype(str), ":" + AREA_ID).astype(object)
+    return vehicle_person_situations(
+        Side(r, ids[r], np.maximum(frame.v_lon[r], 0.0), enter_v, exit_v, length[r]),
+        Side(vehicles + p, persons.ids[p], persons.speed[p], enter_p, exit_p, persons.length[p]),
+        np.ones(len(r), dtype=int), np.zeros(len(r), dtype=bool), params, area)

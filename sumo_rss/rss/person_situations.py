@@ -27,12 +27,11 @@ from ..road.network import RoadNetwork
 from ..road_users import PERSON_CLASS
 from ..sim.persons import PersonSnapshot
 from ..sim.snapshot import WorldSnapshot
-from .jaywalking import AREA_ID as JAYWALK_AREA
-from .jaywalking import jaywalking_situations
-from .intersection import (KIND_SIGNAL, KIND_SAME, KIND_YIELD, PRIORITY_A, PRIORITY_B, PRIORITY_SAME,
-                           intersection_safety, junction_entries, next_route_edge)
+from .intersection import junction_entries, next_route_edge
+from .jaywalking import AREA_ID as JAYWALK_AREA, jaywalking_situations
 from .params import PARAM_NAMES, RssParamArrays
-from .situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, PairSituations, VehicleFrame
+from .person_pairs import Side, vehicle_person_situations
+from .situations import PairSituations, VehicleFrame
 
 # [rad] a person at a crossing's end who faces within this of the crossing's direction may step onto it (SUMO's
 # persons turn towards a crossing on the walking area before they step on; one walking along the kerb or towards
@@ -175,36 +174,10 @@ class PersonAudit:
             enter_v, exit_v, enter_p, exit_p, length, p_length, v_p))
         vehicle_first, by_signal = self._priority(snapshot.tls_states, link, model.crossing[k],
                                                   model.static_priority[k])
-        # Name each situation by id order (a < b); the person's row comes after the vehicles'.
-        person_row = users.vehicles + p
-        a_is_vehicle = snapshot.ids[r] < persons.ids[p]
-        pick = lambda on_vehicle, on_person: np.where(a_is_vehicle, on_vehicle, on_person)  # noqa: E731
-        ra, rb = pick(r, person_row), pick(person_row, r)
-        enter_a, enter_b, exit_a, exit_b = pick(enter_v, enter_p), pick(enter_p, enter_v), pick(exit_v, exit_p), \
-            pick(exit_p, exit_v)
-        length_a, length_b = pick(length, p_length), pick(p_length, length)
-        priority = np.where(vehicle_first == 0, PRIORITY_SAME,
-                            np.where((vehicle_first > 0) == a_is_vehicle, PRIORITY_A, PRIORITY_B))
-        kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
-        v_v = np.maximum(frame.v_lon[r], 0.0)
-        v_a, v_b = pick(v_v, v_p), pick(v_p, v_v)
-        p_a, p_b = users.params.take(ra), users.params.take(rb)
-        safety = intersection_safety(v_a, enter_a, exit_a, length_a, p_a, v_b, enter_b, exit_b, length_b, p_b,
-                                     priority, True)
-        rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
-                 safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
-        a_yields = (priority == PRIORITY_B) | ((priority == PRIORITY_SAME) &
-                                               (enter_a - safety.need_a <= enter_b - safety.need_b))
-        n = len(ra)
-        nan = np.full(n, np.nan)
-        return PairSituations(
-            a=ra, b=rb, kind=kind, a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
-            lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
-            v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, safety.need_a, safety.need_b),
-            lat_d_min=nan, lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules,
-            priority=priority.astype(np.int8),
-            in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
-            area=model.area_id[k], enter_a=enter_a, enter_b=enter_b)
+        return vehicle_person_situations(
+            Side(r, snapshot.ids[r], np.maximum(frame.v_lon[r], 0.0), enter_v, exit_v, length),
+            Side(users.vehicles + p, persons.ids[p], v_p, enter_p, exit_p, p_length), vehicle_first, by_signal,
+            users.params, model.area_id[k])
 
     def _on_crossings(self, persons: PersonSnapshot
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
