@@ -15,7 +15,7 @@ from sumo_rss.road.build import build_network, network_dirs, without_generator_h
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.sumo_home import sumo_tool
 
-NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_priority"]
+NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_tls_peds", "intersection_priority"]
 
 
 def _net(name: str) -> sumolib.net.Net:
@@ -127,7 +127,8 @@ def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 2
     assert proc.stdout.splitlines() == ["highway: STALE (run: sumo-rss nets build)", "highway_exit: up to date",
-                                        "intersection_priority: up to date", "intersection_tls: up to date"]
+                                        "intersection_priority: up to date", "intersection_tls: up to date",
+                                        "intersection_tls_peds: up to date"]
     assert proc.stderr.splitlines() == [f"sumo-rss: error: netconvert failed for {root / 'merge' / 'merge.netccfg'}: "
                                         "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]
 
@@ -146,7 +147,7 @@ def test_nets_check_names_a_misspelt_source_attribute_and_a_missing_net(tmp_path
     assert proc.returncode == 2
     assert proc.stdout.splitlines() == ["highway_exit: up to date", "intersection_priority: up to date",
                                         "intersection_tls: MISSING intersection_tls.net.xml (run: sumo-rss nets build)",
-                                        "merge: up to date"]
+                                        "intersection_tls_peds: up to date", "merge: up to date"]
     assert "Error: attribute 'numLane' is not declared for element 'edge' In file 'highway.edg.xml'" in proc.stderr
 
 

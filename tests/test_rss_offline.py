@@ -759,12 +759,22 @@ def test_an_fcd_without_time_steps_is_named(tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore:.*vType car is not defined")
-def test_persons_in_an_fcd_are_named_once_as_not_audited(tmp_path):
+@pytest.mark.filterwarnings("ignore:.*positions are written with 1 decimals")
+def test_persons_in_an_fcd_are_read_and_paired_with_the_vehicles(tmp_path):
+    """Persons are road users of their own (rss.md §10): read beside the vehicles, not named as not audited. One
+    walking on a road without a sidewalk (the highway's hw0) is on a vehicle lane: paired with the car on its edge
+    (docs/rss.md, "Persons and bicycles": the jaywalking wedge)."""
     fcd = tmp_path / "f.xml"
     person = '<person id="p1" x="30.0" y="-8.0" angle="90" speed="1.2" pos="30.0" edge="hw0"/>'
     fcd.write_text("<fcd-export>" + "".join(f'<timestep time="{t:.2f}">{_fcd_vehicle("a", 20.0 + 3.0 * t)}{person}'
                                              "</timestep>" for t in (0.0, 0.1, 0.2)) + "</fcd-export>")
-    with pytest.warns(UserWarning, match=r"f\.xml, time step 0\.0 s: persons and containers are not audited") as seen:
-        snapshots = list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
-    assert sum("persons and containers" in str(w.message) for w in seen) == 1
+    snapshots = list(FcdReader(fcd, RoadNetwork.from_file(HIGHWAY)))
     assert [s.ids.tolist() for s in snapshots] == [["a"]] * 3
+    assert [s.persons.ids.tolist() for s in snapshots] == [["p1"]] * 3
+    assert snapshots[0].persons.speed.tolist() == [1.2] and snapshots[0].persons.edge_id.tolist() == ["hw0"]
+    pair_steps = []
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", ".*not audited")
+        audit_fcd(fcd, RoadNetwork.from_file(HIGHWAY), ParamResolver(),
+                  on_progress=lambda p: pair_steps.append(p.pair_steps))
+    assert pair_steps == [1, 2, 3]

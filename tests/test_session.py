@@ -29,7 +29,7 @@ def _run(spec, seconds: float) -> tuple[Session, list]:
 
 def test_every_shipped_scenario_is_tested():
     assert SHIPPED_SCENARIOS == ["highway_dense", "highway_exit", "highway_overtake", "highway_sparse",
-                                 "intersection_priority", "intersection_tls", "merge_onramp"]
+                                 "intersection_priority", "intersection_tls", "intersection_tls_peds", "merge_onramp"]
 
 
 @pytest.mark.parametrize("name", SHIPPED_SCENARIOS)

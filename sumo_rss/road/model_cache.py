@@ -32,7 +32,7 @@ CACHE_OFF = "off"
 FORMAT = 1  # of the entry file itself (the code that builds the models is fingerprinted separately)
 MAGIC = b"sumo_rss road model cache\n"
 # The modules whose code decides what a cached model holds: an entry built by other code is not used.
-_BUILDERS = ("frenet", "junctions", "link_pairs", "model_cache", "net_check", "net_file", "network", "reach",
+_BUILDERS = ("crossings", "frenet", "junctions", "link_pairs", "model_cache", "net_check", "net_file", "network", "reach",
              "strip_overlap", "topology", "two_way")
 T = TypeVar("T")
 _kept: dict[str, tuple[str, object]] = {}  # kind → (network's digest, model) of the last kept model

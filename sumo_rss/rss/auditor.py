@@ -19,10 +19,11 @@ from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
 from .evasive_track import Rule5Tracker
-from .params import EvasiveParams, RssParamArrays, RssParams, resolve_params
+from .params import BICYCLE, PERSON, EvasiveParams, RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import KIND_SIGNAL, intersection_situations
+from .person_situations import PersonAudit
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
 
@@ -62,7 +63,7 @@ class ParamResolver:
     def get(self, vclass: str, vtype: str) -> RssParams:
         key = (vclass, vtype)
         if key not in self._cache:
-            role = "ego" if vclass == EGO_CLASS else "background"
+            role = vclass if vclass in (EGO_CLASS, BICYCLE, PERSON) else "background"
             tau, decel = self.vtype_dynamics.get(vtype, (1.0, 4.5))
             self._cache[key] = resolve_params(self.preset, role, None if role == "ego" else vtype,
                                               role_overrides=self.role_overrides,
@@ -78,16 +79,21 @@ class ParamResolver:
     def arrays(self, snapshot: WorldSnapshot, held: bool = True) -> RssParamArrays:
         """Every vehicle's parameters; ``held=False``: without ``hold_standing``'s a_acc = 0 for standing cars
         (:meth:`hold` gives them)."""
-        keys = np.char.add(np.char.add(snapshot.vclass.astype(str), "\x1f"), snapshot.vtype.astype(str))
-        unique, inverse = np.unique(keys, return_inverse=True)
-        table = RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique]).take(inverse)
-        return self.hold(table, snapshot) if held else table
+        table = self.of(snapshot.vclass, snapshot.vtype)
+        return self.hold(table, snapshot.speed) if held else table
 
-    def hold(self, table: RssParamArrays, snapshot: WorldSnapshot) -> RssParamArrays:
-        """``table`` (:meth:`arrays` of ``snapshot``, not held) with ``hold_standing`` applied."""
+    def of(self, vclass: np.ndarray, vtype: np.ndarray) -> RssParamArrays:
+        """The parameters of road users of classes ``vclass`` and vTypes ``vtype`` (one row each)."""
+        keys = np.char.add(np.char.add(vclass.astype(str), "\x1f"), vtype.astype(str))
+        unique, inverse = np.unique(keys, return_inverse=True)
+        return RssParamArrays.stack([self.get(*k.split("\x1f", 1)) for k in unique]).take(inverse.reshape(-1))
+
+    def hold(self, table: RssParamArrays, speed: np.ndarray) -> RssParamArrays:
+        """``table`` (:meth:`arrays` or :meth:`of`, not held) with ``hold_standing`` applied, for road users at
+        ``speed`` [m/s]."""
         if not self.hold_standing:
             return table
-        return replace(table, lon_accel_max=np.where(snapshot.speed == 0.0, 0.0, table.lon_accel_max))
+        return replace(table, lon_accel_max=np.where(speed == 0.0, 0.0, table.lon_accel_max))
 
 
 PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
@@ -164,6 +170,7 @@ class Auditor:
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
+        self._persons = PersonAudit(network, self.junctions)  # the crossings' areas: numbers after these
         self._signal_rule = SignalRule(network, self.junctions, run_id) if signal_rule else None
         self.trace_class = trace_class
         self.record_states = record_states
@@ -181,23 +188,33 @@ class Auditor:
         self._collisions: list[dict] = []
 
     def observe(self, snapshot: WorldSnapshot, collisions: Iterable[CollisionInput] = ()) -> PairSituations:
-        """Audit one step; returns the evaluated pairs (for inspection)."""
+        """Audit one step; returns the evaluated vehicle pairs (for inspection; rows of ``snapshot``: the pairs with
+        persons are left out)."""
         # Candidates as if no car stood (hold_standing): standing neighbours stay evaluated, so what was safe the step
         # before one moves off is known.
         moving = self.params.arrays(snapshot, held=False)
-        params = self.params.hold(moving, snapshot)
+        params = self.params.hold(moving, snapshot.speed)
         frame = vehicle_frame(snapshot, self.network, params, self._routes.remaining(snapshot), moving)
         road = evaluate(snapshot, frame, self.network)
-        ids = snapshot.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
+        persons = snapshot.persons
+        users = self._persons.users(snapshot, params, self.params.hold(self.params.of(
+            np.full(len(persons), PERSON), persons.vtype), persons.speed) if persons is not None else
+            RssParamArrays.stack([]))
+        ids = users.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
         uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in ids], dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
-        crossing = intersection_situations(snapshot, frame, self.network, self.junctions,
-                                           horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0) \
+        horizon = 2.0 * float(frame.reach.max(initial=0.0)) + 20.0
+        crossing = intersection_situations(snapshot, frame, self.network, self.junctions, horizon=horizon) \
             if self.junctions.conflicts else None
+        number = np.searchsorted(self._area_ids, crossing.area.astype(str)) if crossing is not None else None
+        walking = self._persons.situations(snapshot, frame, users, horizon)
+        if walking is not None:  # persons on crossings: junction situations of their own areas
+            walking_number = len(self._area_ids) + self._persons.area_numbers(walking.area)
+            crossing = walking if crossing is None else PairSituations.concat([crossing, walking])
+            number = walking_number if number is None else np.concatenate([number, walking_number])
         areas = area_number = None
         if crossing is not None and len(crossing):
             crossing_keys = ((uid[crossing.a] << 32) | uid[crossing.b]) | INTERSECTION_KEY
-            number = np.searchsorted(self._area_ids, crossing.area.astype(str))
             # Several conflict areas per pair: the pair is dangerous if any is; keep the most critical one
             # (dangerous first, then the yielding car closest to needing to stop), and remember every area's rules.
             margin = crossing.lon_gap - crossing.lon_d_min
@@ -211,12 +228,16 @@ class Auditor:
             situations, keys = road, road_keys
         new_vehicle = np.array([v not in self._prev_ids for v in ids], dtype=bool)
         self._tracker.step(StepInput(
-            time=snapshot.time, keys=keys, situations=situations, ids=snapshot.ids, uids=uid,
-            vclass=snapshot.vclass, accel=snapshot.accel, speed=snapshot.speed,
-            accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=params,
+            time=snapshot.time, keys=keys, situations=situations, ids=users.ids, uids=uid,
+            vclass=users.vclass, accel=users.accel, speed=users.speed,
+            accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=users.params,
             new_vehicle=new_vehicle, areas=areas,
             area_number=area_number))
-        self._rule5.step(snapshot, uid, frame, situations, keys, self._tracker, params,
+        vehicle_pairs, vehicle_keys = situations, keys
+        if walking is not None:  # rows of snapshot only: rule 5 is asked of vehicles, and callers read the snapshot's
+            cars = (situations.a < users.vehicles) & (situations.b < users.vehicles)
+            vehicle_pairs, vehicle_keys = situations.take(cars), keys[cars]
+        self._rule5.step(snapshot, uid[:users.vehicles], frame, vehicle_pairs, vehicle_keys, self._tracker, params,
                          EPS_ACCEL + snapshot.accel_resolution)
         if self._states is not None:
             self._states.step(snapshot.time, self._tracker, keys, situations)
@@ -225,7 +246,7 @@ class Auditor:
         self.record_collisions(collisions)
         self._prev_ids = set(ids)
         self.pair_steps += len(situations)
-        return situations
+        return vehicle_pairs
 
     def owed_by(self, vehicle_id: str) -> OwedResponses:
         """The proper responses ``vehicle_id`` owes right now (open episodes after the last observed step)."""

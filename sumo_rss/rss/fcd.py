@@ -23,13 +23,14 @@ from ..errors import SumoRssError, cut, listed, shown
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
-from ..sim.snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+from ..sim.snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
 from .params import EvasiveParams
 from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
+from .fcd_persons import person_snapshot
 from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
@@ -58,6 +59,7 @@ class VehicleInfo:
     dynamics: dict[str, tuple[float, float]] = field(default_factory=dict)  # vType → (tau [s], decel [m/s²])
     routes: dict[str, tuple[str, ...]] = field(default_factory=dict)  # vehicle or flow id → edges
     types: dict[str, str] = field(default_factory=dict)  # vehicle or flow id → vType (for an FCD without 'type')
+    bicycles: frozenset[str] = frozenset({"DEFAULT_BIKETYPE"})  # vTypes of SUMO vClass bicycle
 
     def route_of(self, vehicle_id: str) -> tuple[str, ...] | None:
         """The route of a vehicle, or of the flow that made it (``flow.k``); None if unknown."""
@@ -106,7 +108,8 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
     except ValueError as exc:
         raise FcdError(str(exc)) from exc
     info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
-                       {t: (p.tau, p.decel) for t, p in types.items()})
+                       {t: (p.tau, p.decel) for t, p in types.items()},
+                       bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"))
     named_routes: dict[str, tuple[str, ...]] = {}
     for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
         if elem.tag == "route" and elem.get("id"):
@@ -215,8 +218,8 @@ class FcdReader:
         self._prev_time: float | None = None
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
-        self._warned_persons = False  # about persons and containers, which are not audited
-        self.people: set[str] = set()  # ids of the persons and containers in the file so far (not audited)
+        self._warned_containers = False  # about containers, which are not audited
+        self.people: set[str] = set()  # ids of the persons and containers in the file so far
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -333,10 +336,16 @@ class FcdReader:
             raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
         where = f"{self.path}, time step {time} s"
         self.people.update(step.unaudited)
-        if step.unaudited and not self._warned_persons:
-            self._warned_persons = True
-            warnings.warn(f"{where}: persons and containers are not audited (the RSS model covers vehicles; a "
+        if step.unaudited and not self._warned_containers:
+            self._warned_containers = True
+            warnings.warn(f"{where}: containers are not audited (the RSS model covers vehicles and persons; a "
                           "collision with one is listed with blamed 'none')", stacklevel=3)
+        try:
+            persons = person_snapshot(step.persons, self.vehicles.sizes, where) if step.persons else None
+        except ValueError as exc:
+            raise FcdError(str(exc)) from None
+        if persons is not None:
+            self.people.update(persons.ids.tolist())
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
             raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
@@ -431,10 +440,11 @@ class FcdReader:
             time=time, ids=ids, x=x, y=y, heading=heading, speed=speed, accel=accel, lat_speed=lat_speed,
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
-            vclass=np.where(is_ego, EGO_CLASS, BACKGROUND_CLASS), vtype=vtype,
+            vclass=np.where(is_ego, EGO_CLASS, np.where(np.isin(vtype, list(self.vehicles.bicycles)), BICYCLE_CLASS,
+                                                        BACKGROUND_CLASS)), vtype=vtype,
             signals=signals,
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
-            accel_resolution=accel_resolution)
+            accel_resolution=accel_resolution, persons=persons)
 
 
 @dataclass(frozen=True)

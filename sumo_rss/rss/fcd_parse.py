@@ -17,7 +17,7 @@ from ..sumo_xml import MALFORMED
 
 BLOCK_BYTES = 1 << 16  # read and parsed at once (progress moves in these steps)
 ROOT_TAG = "fcd-export"
-UNAUDITED_TAGS = ("person", "container")  # road users an FCD lists beside vehicles
+UNAUDITED_TAGS = ("container",)  # road users an FCD lists beside vehicles and persons that are not audited
 
 
 @dataclass
@@ -26,7 +26,8 @@ class FcdStep:
 
     time: str | None
     vehicles: list[list[str]] = field(default_factory=list)  # per vehicle: name, value, name, value, ...
-    unaudited: list[str] = field(default_factory=list)  # the ids of the persons and containers listed in it
+    unaudited: list[str] = field(default_factory=list)  # the ids of the containers listed in it
+    persons: list[list[str]] = field(default_factory=list)  # per person: name, value, name, value, ...
     _columns: dict[str, tuple[str, ...]] | None = field(default=None, repr=False)
     _rows: list[dict[str, str]] | None = field(default=None, repr=False)
 
@@ -89,6 +90,8 @@ class _Handler:
             self.started_time = _attribute(attrs, "time")
             self._step = FcdStep(self.started_time)
             self._step_depth = self._depth
+        elif step is not None and name == "person" and self._depth == self._step_depth + 1:
+            step.persons.append(attrs)
         elif step is not None and name in UNAUDITED_TAGS and self._depth == self._step_depth + 1:
             step.unaudited.append(_attribute(attrs, "id") or "")
 

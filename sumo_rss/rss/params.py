@@ -13,11 +13,15 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
+from ..road_users import BICYCLE_CLASS, PERSON_CLASS
+
 MODEL_VERSION = "rss-1"
 """Version of the audit semantics; written into every summary so old results stay interpretable."""
 
 PRESETS = ("ad_rss", "mobileye_human", "epsilon", "krauss")
 ROLES = ("ego", "background")
+# Road users that are not cars (rss.md §10) have their own parameter rows: BICYCLE (SUMO vClass bicycle) and PERSON.
+BICYCLE, PERSON = BICYCLE_CLASS, PERSON_CLASS
 
 SUMO_DEFAULT_TAU = 1.0  # [s] SUMO's default vType tau
 SUMO_DEFAULT_DECEL = 4.5  # [m/s²] SUMO's default passenger decel
@@ -65,9 +69,21 @@ class RssParams:
 PARAM_NAMES = tuple(f.name for f in fields(RssParams))
 
 
+# rss.md §10, assumptions (docs/rss.md, persons and bicycles). A bicycle: ρ 1 s, a_acc 1.5, b_min 2, b_max 4 m/s²,
+# a_lat 0.5, b_lat 0.5 m/s², μ 0.2 m; b_corr keeps ad_rss's ratio b_corr / b_min = 3 / 4.
+BICYCLE_PARAMS = RssParams(response_time=1.0, lon_accel_max=1.5, lon_brake_min=2.0, lon_brake_min_correct=1.5,
+                           lon_brake_max=4.0, lat_accel_max=0.5, lat_brake_min=0.5, lat_fluctuation_margin=0.2)
+# A person (the paper's example): ρ 0.5 s, a_acc 2, b_min = b_max (= b_corr) 2 m/s²; sideways as along its way.
+PERSON_PARAMS = RssParams(response_time=0.5, lon_accel_max=2.0, lon_brake_min=2.0, lon_brake_min_correct=2.0,
+                          lon_brake_max=2.0, lat_accel_max=2.0, lat_brake_min=2.0, lat_fluctuation_margin=0.2)
+
+
 def preset_params(preset: str, role: str, *, tau: float = SUMO_DEFAULT_TAU,
                   decel: float = SUMO_DEFAULT_DECEL) -> RssParams:
-    """The preset's parameters for a vehicle of ``role`` ('ego' or 'background').
+    """The preset's parameters for a road user of ``role`` ('ego', 'background', BICYCLE or PERSON).
+
+    Bicycles and persons have their own rows (BICYCLE_PARAMS, PERSON_PARAMS) under every preset but ``krauss``,
+    under which a bicycle, which SUMO drives with Krauss as it drives cars, gets the Krauss row of its own vType.
 
     ``tau`` [s] and ``decel`` [m/s²] are the vehicle's SUMO vType values; only ``krauss`` uses them.
 
@@ -79,6 +95,12 @@ def preset_params(preset: str, role: str, *, tau: float = SUMO_DEFAULT_TAU,
       it reacts after τ and then brakes at ``decel`` too, without accelerating meanwhile. Hence
       ρ = τ, a_acc = 0, b_corr = b_min = b_max = decel. Lateral values are ad_rss's.
     """
+    if preset not in PRESETS:
+        raise ValueError(f"unknown RSS preset {preset!r}; expected one of {', '.join(PRESETS)}")
+    if role == PERSON:
+        return PERSON_PARAMS
+    if role == BICYCLE and preset != "krauss":
+        return BICYCLE_PARAMS
     if preset == "ad_rss":
         return RssParams()
     if preset == "mobileye_human":
@@ -86,10 +108,8 @@ def preset_params(preset: str, role: str, *, tau: float = SUMO_DEFAULT_TAU,
     if preset == "epsilon":
         return RssParams(response_time=0.2, lon_accel_max=2.0, lon_brake_min=4.0, lon_brake_min_correct=4.0,
                          lon_brake_max=5.0, lat_accel_max=1.0, lat_brake_min=1.0, lat_fluctuation_margin=0.5)
-    if preset == "krauss":
-        return RssParams(response_time=tau, lon_accel_max=0.0, lon_brake_min=decel,
-                         lon_brake_min_correct=decel, lon_brake_max=decel)
-    raise ValueError(f"unknown RSS preset {preset!r}; expected one of {', '.join(PRESETS)}")
+    return RssParams(response_time=tau, lon_accel_max=0.0, lon_brake_min=decel,  # krauss
+                     lon_brake_min_correct=decel, lon_brake_max=decel)
 
 
 def apply_overrides(params: RssParams, overrides: Mapping[str, float]) -> RssParams:

@@ -19,6 +19,7 @@ from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
 from .records import EVASIVE_CONSTRAINT, RULE5_UNCHECKED
+from ..road_users import PERSON_CLASS
 from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
@@ -301,7 +302,8 @@ class ResponsibilityTracker:
             min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
             responsible=np.zeros((n, 2), dtype=bool), **_area_progress(
                 sit, rows, np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]),
-                np.column_stack([step.accel[a], step.accel[b]])), active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
+                np.column_stack([step.accel[a], step.accel[b]]), _instant_brake(step, np.column_stack([a, b]))),
+            active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
             v_start=np.zeros((n, 2, N_CONSTRAINTS)), v_last=np.zeros((n, 2, N_CONSTRAINTS)),
             v_worst=np.zeros((n, 2, N_CONSTRAINTS)), v_bound=np.zeros((n, 2, N_CONSTRAINTS)),
             v_excess=np.full((n, 2, N_CONSTRAINTS), -np.inf))
@@ -336,7 +338,7 @@ class ResponsibilityTracker:
         p = step.params
         accel = step.accel[cars]
         if len(sit):
-            progress = _area_progress(sit, rows, v_lon, accel)
+            progress = _area_progress(sit, rows, v_lon, accel, _instant_brake(step, cars))
             e.entered |= pair & progress["entered"]
             e.stood_short |= pair & progress["stood_short"]
             e.stopping = np.where(pair, progress["stopping"], e.stopping)
@@ -486,19 +488,27 @@ class ResponsibilityTracker:
             [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
 
 
-def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray
-                   ) -> dict[str, np.ndarray]:
+def _instant_brake(step: StepInput, cars: np.ndarray) -> np.ndarray:
+    """[m/s²] b_max of the persons among the road users ``cars`` (rows of ``step``), NaN for vehicles."""
+    return np.where(step.vclass[cars] == PERSON_CLASS, step.params.lon_brake_max[cars], np.nan)
+
+
+def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray,
+                   instant_brake: np.ndarray) -> dict[str, np.ndarray]:
     """[n, 2] per car of the crossing situations ``rows`` (``speed`` [m/s] and ``accel`` [m/s²] per car): its front
     bumper is in the conflict area or past its start ('entered'), it stands short of it ('stood_short'), it is
-    short of it and stands or brakes hard enough to stop before it ('stopping'); all False on roads."""
+    short of it and stands or brakes hard enough to stop before it ('stopping'); all False on roads. A person
+    (``instant_brake``: its b_max [m/s²], NaN for a vehicle) is also 'stopping' while braking at b_max would stop
+    it before the area: SUMO's persons have no deceleration, they stop within a step where they are to wait."""
     if sit.enter_a is None:
         none = np.zeros((len(rows), 2), dtype=bool)
         return {"entered": none, "stood_short": none, "stopping": none}
     enter = np.column_stack([sit.enter_a[rows], sit.enter_b[rows]])  # NaN on roads: every comparison False
     short = enter > 0.0
     standing = short & (speed < STOPPED_SPEED)
+    can_stop = speed * speed < 2.0 * instant_brake * enter  # NaN (a vehicle): False
     return {"entered": enter < 0.0, "stood_short": standing,
-            "stopping": standing | (short & (accel < 0.0) & (speed * speed < -2.0 * accel * enter))}
+            "stopping": standing | (short & (((accel < 0.0) & (speed * speed < -2.0 * accel * enter)) | can_stop))}
 
 
 def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

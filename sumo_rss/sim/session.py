@@ -31,9 +31,10 @@ from . import ego as ego_actuation
 from .collisions import CollisionEvent, ContactTracker
 from .demand import sumo_number, write_route_file
 from .fcd_output import correct_placed_vehicle
-from .snapshot import BACKGROUND_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
+from .person_feed import PersonFeed
+from .snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 
-FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals"
+FCD_ATTRIBUTES = "id,x,y,angle,type,speed,acceleration,pos,lane,posLat,speedLat,signals,edge"  # edge: of persons
 FCD_PRECISION = 6  # decimals in SUMO outputs written by a session (FCD, collisions). Snapshot values are rounded
 # to the same decimals in SUMO's own units (m, degrees, m/s, m/s²), so an audit of the FCD file sees exactly the
 # numbers the online audit saw.
@@ -134,6 +135,7 @@ class Session:
         self.steps = 0
         self.snapshot: WorldSnapshot | None = None
         self._static: dict[str, _Static] = {}
+        self._persons = PersonFeed(as_written)
         self._contacts = ContactTracker()
         self._ego_controlled = False
         self._ego_released = False  # handed back to SUMO at the end of its route, to arrive
@@ -256,6 +258,7 @@ class Session:
         # SUMO stamps the state a step produced with the step's start time in all its output files (FCD,
         # collisions); snapshots use the same stamp, from SUMO's integer milliseconds (exact decimals).
         time = (libsumo.simulation.getCurrentTime() - self._step_ms) / 1000.0
+        self._persons.step()
         for vid in libsumo.simulation.getDepartedIDList():
             self._on_depart(vid)
         arrived = libsumo.simulation.getArrivedIDList()
@@ -277,7 +280,8 @@ class Session:
         v.subscribe(vid, _VARS)
         self.vehicles_inserted += 1
         self._static[vid] = _Static(v.getLength(vid), v.getWidth(vid), v.getTypeID(vid),
-                                    EGO_CLASS if vid == self.ego_id else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
+                                    EGO_CLASS if vid == self.ego_id else BICYCLE_CLASS
+                                    if v.getVehicleClass(vid) == "bicycle" else BACKGROUND_CLASS, tuple(v.getRoute(vid)))
 
     def _record_collisions(self, time: float) -> None:
         reports = [CollisionEvent(time, c.collider, c.victim, c.colliderType, c.victimType, c.colliderSpeed,
@@ -324,7 +328,8 @@ class Session:
             vtype=np.array([s.vtype for s in static], dtype=str),
             signals=col(tc.VAR_SIGNALS, int), route_index=col(tc.VAR_ROUTE_INDEX, int),
             route_edges=tuple(s.route for s in static),
-            tls_states={tl: libsumo.trafficlight.getRedYellowGreenState(tl) for tl in self._signals} or None)
+            tls_states={tl: libsumo.trafficlight.getRedYellowGreenState(tl) for tl in self._signals} or None,
+            persons=self._persons.snapshot())
 
     def _ego_lateral_speed(self, row: dict) -> float:
         """Lateral speed [m/s] (+ = left) of the ego while it is placed by moveToXY, for which SUMO reports 0:

@@ -11,6 +11,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..angles import wrap_angle
+from ..road_users import BICYCLE_CLASS, PERSON_CLASS  # noqa: F401  (classes beside EGO_CLASS, BACKGROUND_CLASS)
+from .persons import PersonSnapshot
 
 EGO_CLASS = "ego"
 BACKGROUND_CLASS = "background"
@@ -50,7 +52,7 @@ class WorldSnapshot:
     lane_index: np.ndarray  # int
     lane_pos: np.ndarray  # [m] s of the front bumper along the lane
     lat_pos: np.ndarray  # [m] offset of the front-bumper centre from the lane's centre line, + = left (posLat)
-    vclass: np.ndarray  # str: 'ego' | 'background'
+    vclass: np.ndarray  # str: 'ego' | 'background' | 'bicycle'
     vtype: np.ndarray  # str: SUMO vType id
     signals: np.ndarray  # int: SUMO signal bit set
     route_index: np.ndarray  # int
@@ -59,6 +61,7 @@ class WorldSnapshot:
     # [m/s²] how far ``accel`` may be off by how it was measured (from speeds an FCD wrote with few decimals); the
     # audit widens its acceleration tolerance by it
     accel_resolution: float = 0.0
+    persons: PersonSnapshot | None = None  # the persons on the network (None: not read, e.g. a run without any)
 
     def __len__(self) -> int:
         return int(self.ids.shape[0])
@@ -81,6 +84,9 @@ class WorldSnapshot:
     def equals(self, other: WorldSnapshot) -> bool:
         """Exact equality of time, every array and the routes."""
         if self.time != other.time or self.route_edges != other.route_edges or self.tls_states != other.tls_states:
+            return False
+        if (self.persons is None) != (other.persons is None) or (
+                self.persons is not None and not self.persons.equals(other.persons)):  # type: ignore[arg-type]
             return False
         mine, theirs = self.array_fields(), other.array_fields()
         return all(np.array_equal(mine[k], theirs[k]) for k in mine)

@@ -34,6 +34,7 @@ class VTypeParameters:
     width: float  # [m]
     tau: float  # [s] desired time headway
     decel: float  # [m/s²] comfortable deceleration
+    vclass: str = "passenger"  # SUMO's vClass ('bicycle' gets its own RSS parameters)
 
 
 def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: str = "") -> dict[str, VTypeParameters]:
@@ -63,7 +64,8 @@ def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: st
             raise ValueError(f"{source or net_file}: SUMO cannot load the vTypes ({reason})") from exc
         try:
             vt = libsumo.vehicletype
-            types = {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t))
+            types = {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t),
+                                        vt.getVehicleClass(t))
                      for t in vt.getIDList()}
         finally:
             libsumo.close()
