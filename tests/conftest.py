@@ -36,6 +36,12 @@ VALID_SCENARIO = {
 }
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked slow first: pytest-xdist hands the first tests out to its workers in turn, so the long
+    co-simulations start at once on both workers instead of one worker running the last of them alone."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def road_model_cache(tmp_path_factory) -> Path:
     """The road model cache of this test session (a fresh folder; also for the commands tests start): tests never

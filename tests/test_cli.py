@@ -86,6 +86,7 @@ def test_same_scenario_and_seed_give_byte_identical_audit_csvs(tmp_path):
     assert summaries[0] == summaries[1]
 
 
+@pytest.mark.slow
 def test_the_planners_own_rss_preset_is_written_beside_the_auditors_parameters(tmp_path, valid_scenario):
     """With ``[ego.planner] rss_preset`` the parameters the planner judged RSS with were written nowhere."""
     valid_scenario.update(duration_s=3.0)
@@ -101,6 +102,7 @@ def test_the_planners_own_rss_preset_is_written_beside_the_auditors_parameters(t
         assert (audited[key]["response_time"], audited[key]["lon_brake_max"]) == (1.0, 8.0), key
 
 
+@pytest.mark.slow
 def test_controller_option_drives_the_ego_with_the_chosen_controller(tmp_path, valid_scenario):
     """``run --controller`` replaces the scenario's controller (recorded in the resolved scenario) and writes the
     run where a batch's controller sweep would, beside the scenario's own run; ``batch --controller`` sweeps

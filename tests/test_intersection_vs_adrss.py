@@ -130,6 +130,7 @@ def _swapped(step: IntersectionStep) -> IntersectionStep:
                             step.len_ego)
 
 
+@pytest.mark.slow
 def test_owed_response_after_the_danger_threshold_matches_ad_rss():
     """A safe step then an unsafe one: ad_rss's response (BrakeMin or None) for each car, taken as its ego, equals
     our duty for it."""

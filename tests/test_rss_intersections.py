@@ -126,6 +126,7 @@ def test_e_permissive_left_turn_owes_the_yield_to_oncoming_traffic(tmp_path):
     assert set(episodes.responsible) == {"b"}
 
 
+@pytest.mark.slow
 def test_every_collision_in_ten_minutes_of_careless_junction_traffic_joins_an_episode(tmp_path):
     """10 simulated minutes of the shipped intersection_tls demand with drivers who sometimes ignore foes and
     red lights (SUMO's junction-model parameters), so that SUMO reports real junction collisions."""
