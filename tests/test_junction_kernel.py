@@ -2,20 +2,26 @@
 random junction (8 links, random conflict areas, static priorities and signal states) and random entries (cars
 before, in and past the areas, speeds 0-30 m/s, the presets' and random parameter sets), every pair the kernel
 evaluates is the one the numpy path gives (every two entries of two cars that share an area neither has left,
-named by id order) with the same priority, kind, rules and margins, to 1e-9."""
+named by id order) with the same priority, kind, rules and margins, to 1e-9. Its entries (the links each car is
+on or approaches, and those further along its route) against a vehicle-by-vehicle statement of the rule, on the
+DRT fragment's junctions with random positions and routes."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.link_pairs import LinkBlocks, LinkPairs
-from sumo_rss.rss.intersection import (KIND_SAME, KIND_SIGNAL, KIND_YIELD, PRIORITY_B, PRIORITY_SAME,
-                                       intersection_safety)
+from sumo_rss.road.network import RoadNetwork
+from sumo_rss.rss.intersection import (JUNCTIONS_AHEAD, KIND_SAME, KIND_SIGNAL, KIND_YIELD, PRIORITY_B, PRIORITY_SAME,
+                                       intersection_safety, junction_entries, next_route_edge)
 from sumo_rss.rss.junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs
 from sumo_rss.rss.params import PARAM_NAMES, PRESETS, RssParamArrays, RssParams, preset_params
 from sumo_rss.rss.situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP
+from sumo_runs import DATA
 
 LINKS, CARS, ENTRIES = 8, 30, 45
+FRAGMENT = DATA / "drt_fragment.net.xml"  # 560 m x 610 m of the DRT city (tests/data/README.md)
 
 
 def _random_params(rng: np.random.Generator, n: int) -> RssParamArrays:
@@ -112,3 +118,70 @@ def test_the_kernel_gives_the_numpy_formulas_pairs(seed):
     # The pairs meet every case: each combination of the three rules holding, and every kind of priority.
     assert set(ints[INT_COLUMNS.index("rules")].tolist()) == set(range(8))
     assert set(ints[INT_COLUMNS.index("kind")].tolist()) == {KIND_SIGNAL, KIND_YIELD, KIND_SAME}
+
+
+@pytest.fixture(scope="module")
+def fragment() -> tuple[RoadNetwork, JunctionModel]:
+    network = RoadNetwork.from_file(FRAGMENT)
+    return network, JunctionModel.from_file(FRAGMENT, network)
+
+
+def _walk(rng: np.random.Generator, lane: int, junctions: JunctionModel, network: RoadNetwork, hops: int) -> list[int]:
+    """A route from ``lane``'s edge through ``hops`` junctions, each link chosen at random."""
+    route = [int(network.lane_edge[lane])]
+    for _ in range(hops):
+        links = junctions.lane_links[lane][junctions.lane_links[lane] >= 0]
+        if links.size == 0:
+            break
+        link = int(rng.choice(links))
+        route.append(int(junctions.link_to_edge[link]))
+        lane = int(junctions.link_to_lane[link])
+    return route
+
+
+def _reference_entries(lane, lane_pos, next_edge, routes, levels, horizon, junctions, network) -> list[tuple]:
+    """The entries as junction_entries documents them, vehicle by vehicle in Python."""
+    found = [(i, int(junctions.lane_link[l]), junctions.lane_link_offset[l] + p)
+             for i, (l, p) in enumerate(zip(lane, lane_pos)) if junctions.lane_link[l] >= 0]
+    for i, (l, p) in enumerate(zip(lane, lane_pos)):
+        to_end = network.lane_length[l] - p
+        found += [(i, int(k), -to_end) for k in junctions.lane_links[l] if k >= 0 and to_end <= horizon and
+                  (next_edge[i] < 0 or junctions.link_to_edge[k] == next_edge[i])]
+    level = list(found)
+    for _ in range(levels):
+        further = []
+        for i, k, p in level:
+            onto = junctions.link_to_lane[k]
+            start = (junctions.link_length[k] - p) + network.lane_length[onto]
+            route = [e for e in routes[i].tolist() if e >= 0]
+            edge = network.lane_edge[onto]
+            after = route[route.index(edge) + 1] if edge in route[:-1] else -1
+            further += [(i, int(k2), -start) for k2 in junctions.lane_links[onto] if k2 >= 0 and after >= 0 and
+                        start <= horizon and junctions.link_to_edge[k2] == after]
+        if not further:
+            break
+        found += further
+        level = further
+    return found
+
+
+def test_entries_are_each_vehicles_links_and_those_further_along_its_route(fragment):
+    network, junctions = fragment
+    rng = np.random.default_rng(11)
+    n = 400
+    approach = np.flatnonzero((junctions.lane_links >= 0).any(axis=1))
+    lane = np.where(rng.random(n) < 0.3, rng.integers(0, len(network.lane_ids), n), rng.choice(approach, n))
+    lane_pos = rng.uniform(0.0, 1.0, n) * network.lane_length[lane]
+    routes = np.full((n, 6), -1, dtype=np.int64)
+    for i in range(n):
+        if rng.random() < 0.8:  # the others: route unknown
+            route = _walk(rng, int(lane[i]), junctions, network, 5)
+            routes[i, :len(route)] = route
+    next_edge = next_route_edge(routes, network.lane_edge[lane])
+    for levels, horizon in ((0, np.inf), (0, 50.0), (JUNCTIONS_AHEAD, 120.0)):
+        rows, links, pos = junction_entries(lane, lane_pos, next_edge, network, junctions, horizon, levels, routes)
+        want = _reference_entries(lane, lane_pos, next_edge, routes, levels, horizon, junctions, network)
+        assert list(zip(rows.tolist(), links.tolist())) == [(i, k) for i, k, _ in want]
+        assert np.array_equal(pos, np.array([p for _, _, p in want]))
+        if levels:
+            assert len(rows) > len(junction_entries(lane, lane_pos, next_edge, network, junctions, horizon)[0]) + 50

@@ -163,53 +163,20 @@ def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any,
 
 
 def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray, network: RoadNetwork,
-                     junctions: JunctionModel, horizon: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     junctions: JunctionModel, horizon: float, levels: int = 0,
+                     route_edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
     [m], negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane
     within ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its
-    lane where that is unknown, -1)."""
-    inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
-    to_end = network.lane_length[lane] - lane_pos
-    r, links = _links_ahead(junctions, lane, to_end, next_edge, horizon)
-    rows = np.concatenate([inside, r])
-    links = np.concatenate([junctions.lane_link[lane[inside]], links])
-    pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + lane_pos[inside], -to_end[r]])
-    return rows, links, pos
+    lane where that is unknown, -1). With ``levels`` and the vehicles' ``route_edges``: also the entries at up to
+    ``levels`` further junctions along each known route whose links start within ``horizon``
+    (:func:`.junction_kernel.entries`, compiled)."""
+    from .junction_kernel import entries  # numba: only where junctions are
 
-
-def _links_ahead(junctions: JunctionModel, lane: np.ndarray, to_start: np.ndarray, next_edge: np.ndarray,
-                 horizon: float) -> tuple[np.ndarray, np.ndarray]:
-    """(index into ``lane``, link) of the links from each lane whose start is within ``horizon`` [m]
-    (``to_start``) that lead into the route's ``next_edge`` (every link where that is unknown, -1)."""
-    cand = junctions.lane_links[lane]
-    ok = (cand >= 0) & (to_start[:, None] <= horizon) & \
-        ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
-    r, c = np.nonzero(ok)
-    return r, cand[r, c]
-
-
-def entries_beyond(rows: np.ndarray, links: np.ndarray, pos: np.ndarray, route_edges: np.ndarray,
-                   network: RoadNetwork, junctions: JunctionModel, horizon: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The entries of :func:`junction_entries` (vehicle rows, links, positions [m]) and those at the next junctions
-    along each vehicle's route, as long as a link starts within ``horizon`` [m] of the front bumper (at most
-    JUNCTIONS_AHEAD more): where edges between junctions are short (a roundabout's 20 m) a car is in its conflicts
-    at the next junction before it reaches the edge leading there. Followed from the lane each link leads into;
-    not where the route is unknown."""
-    found = [(rows, links, pos)]
-    after = junctions.link_length[links] - pos  # [m] from the front bumper to the end of the link's path
-    for _ in range(JUNCTIONS_AHEAD):
-        lane = junctions.link_to_lane[links]
-        start = after + network.lane_length[lane]  # [m] to the start of the next link
-        next_edge = next_route_edge(route_edges[rows], network.lane_edge[lane])
-        known = np.flatnonzero(next_edge >= 0)  # beyond the next junction only along a known route
-        r, links = _links_ahead(junctions, lane[known], start[known], next_edge[known], horizon)
-        if r.size == 0:
-            break
-        rows, start = rows[known[r]], start[known[r]]
-        found.append((rows, links, -start))
-        after = start + junctions.link_length[links]
-    return tuple(np.concatenate(parts) for parts in zip(*found))  # type: ignore[return-value]
+    return entries(lane, lane_pos, next_edge, np.zeros((0, 0), dtype=np.int64) if route_edges is None else route_edges,
+                   levels, float(horizon), junctions.lane_link, junctions.lane_link_offset, junctions.lane_links,
+                   junctions.link_to_edge, junctions.link_to_lane, junctions.link_length, network.lane_length,
+                   network.lane_edge)
 
 
 def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
@@ -218,8 +185,8 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), or already on the link's internal lanes."""
-    rows, links, pos = entries_beyond(*junction_entries(frame.lane, frame.lane_pos, next_route_edge(
-        frame.route_edges, frame.edge), network, junctions, horizon), frame.route_edges, network, junctions, horizon)
+    rows, links, pos = junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge),
+                                        network, junctions, horizon, JUNCTIONS_AHEAD, frame.route_edges)
     from .junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs  # numba: only where junctions are
 
     table, pairs = junctions.conflict_pairs, junctions.conflict_pairs.pairs

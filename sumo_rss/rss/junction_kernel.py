@@ -25,6 +25,73 @@ INT_COLUMNS = ("a", "b", "kind", "a_is_rear", "safe", "rules", "priority", "in_f
 
 
 @kernel
+def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, lane_link_offset, lane_links,
+            link_to_edge, link_to_lane, link_length, lane_length, lane_edge):
+    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path [m],
+    negative before its start). A vehicle on an internal lane (``lane``, its position ``lane_pos`` [m]) is on that
+    lane's link; one on an approach lane within ``horizon`` [m] of its end takes the link to its route's next edge
+    ``next_edge`` (every link from its lane where that is unknown, -1). Then, up to ``levels`` times, the links at
+    the next junction along each entry's route (``route_edges`` [n, k], -1 padded), from the lane its link leads
+    into, where the route is known and the link starts within ``horizon`` of the front bumper: where edges between
+    junctions are short (a roundabout's 20 m) a car is in its conflicts at the next junction before it reaches the
+    edge leading there. In order: the vehicles inside, the approaching ones (by row, then their lane's links), then
+    each further level by the entry it follows. The rest are the junction model's and the network's arrays."""
+    n, width = lane.size, lane_links.shape[1]
+    rows = np.empty(n * (1 + width), dtype=np.int64)
+    links = np.empty(rows.size, dtype=np.int64)
+    pos = np.empty(rows.size)
+    m = 0
+    for i in range(n):
+        if lane_link[lane[i]] >= 0:
+            rows[m], links[m], pos[m] = i, lane_link[lane[i]], lane_link_offset[lane[i]] + lane_pos[i]
+            m += 1
+    for i in range(n):
+        to_end = lane_length[lane[i]] - lane_pos[i]
+        for c in range(width):
+            k = lane_links[lane[i], c]
+            if k >= 0 and to_end <= horizon and (next_edge[i] < 0 or link_to_edge[k] == next_edge[i]):
+                rows[m], links[m], pos[m] = i, k, -to_end
+                m += 1
+    first = 0
+    for _ in range(levels):
+        size = m + (m - first) * width  # at most every link from each entry's next lane
+        if size > rows.size:
+            rows, links, pos = _grown(rows, size), _grown(links, size), _grown(pos, size)
+        last = m
+        for e in range(first, last):
+            onto = link_to_lane[links[e]]
+            start = (link_length[links[e]] - pos[e]) + lane_length[onto]  # [m] to the start of the next link
+            after = _next_on_route(route_edges, rows[e], lane_edge[onto])
+            for c in range(width):
+                k = lane_links[onto, c]
+                if k >= 0 and after >= 0 and start <= horizon and link_to_edge[k] == after:
+                    rows[m], links[m], pos[m] = rows[e], k, -start
+                    m += 1
+        if m == last:
+            break
+        first = last
+    return rows[:m], links[:m], pos[:m]
+
+
+@kernel
+def _next_on_route(route_edges, row, edge):
+    """The edge after ``edge`` on row ``row``'s route (its first occurrence), -1 if unknown."""
+    for c in range(route_edges.shape[1] - 1):
+        if route_edges[row, c] == edge:
+            return route_edges[row, c + 1]
+    return -1
+
+
+@kernel
+def _grown(values, size):
+    """``values`` copied into a longer array of ``size`` (the rest uninitialised)."""
+    out = np.empty(size, dtype=values.dtype)
+    for k in range(values.size):
+        out[k] = values[k]
+    return out
+
+
+@kernel
 def conflicting_entries(links, indptr, other):
     """(i, j, k): every two entries i < j whose links share a conflict area, in (i, j) order, and the number of
     their link pair (links[i], links[j]) (``indptr``, ``other``: :class:`~..road.link_pairs.LinkPairList`'s).
