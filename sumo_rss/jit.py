@@ -10,7 +10,8 @@ only what numpy over arrays and numba over scalars both accept: arithmetic, comp
 objects (``p.lon_brake_min``) are dataclasses in numpy code and named tuples of floats in the kernel
 (:data:`RssRow`).
 
-numba is imported only by :func:`register` (the kernel's import): the auditor never pays its ~0.5 s import.
+numba is imported only by :func:`register` (a kernel module's import): by the planner, and by the auditor's junction
+situations (:mod:`sumo_rss.rss.junction_kernel`, imported at their first call).
 
 **Compiled-code cache.** The kernel is compiled with ``cache=True``. numba checks a cached function only against
 its own source file, not against the files of the functions it calls (numba's documented limit): a cache built
