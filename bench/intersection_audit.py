@@ -2,10 +2,17 @@
 kept; then they are audited (every pair, road and junction situations; no signal rule, no collisions), timed on
 their own. Figures: pair-steps/s of the audit, real-time factors of the simulation alone, the audit alone and the
 two timings added (``sim_plus_audit_rtf``: not one co-simulation), ms of audit per step, and how many of the
-pair-steps were junction situations (``junction_pair_steps``: pairs in a conflict area, one per pair and step)."""
+pair-steps were junction situations (``junction_pair_steps``: pairs in a conflict area, one per pair and step).
+The junction situations alone (``intersection_situations`` over the same snapshots, their vehicle frames built
+untimed): ms per step and situation rows (one per pair and conflict area) per second
+(``junction_rows_per_s``). The junction kernel's first call in a fresh process (``jit_compile_s``: an empty numba
+cache, as in a fresh clone; ``jit_cached_s``: from the cache it left), each with numba's import."""
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -17,9 +24,46 @@ from _results import arguments, record  # noqa: E402
 from sumo_rss import load_scenario  # noqa: E402
 from sumo_rss.batch.runner import param_resolver  # noqa: E402
 from sumo_rss.road.network import RoadNetwork  # noqa: E402
+from sumo_rss.road.routes import RouteTable  # noqa: E402
 from sumo_rss.rss.auditor import Auditor  # noqa: E402
-from sumo_rss.rss.situations import FIRST_INTERSECTION_CODE  # noqa: E402
+from sumo_rss.rss.intersection import intersection_situations  # noqa: E402
+from sumo_rss.rss.situations import FIRST_INTERSECTION_CODE, vehicle_frame  # noqa: E402
 from sumo_rss.sim.session import Session  # noqa: E402
+# The kernel's first call, timed in a fresh process: numba's import and the compile (or the cache load).
+FIRST_CALL = """
+import time
+started, cpu = time.perf_counter(), time.process_time()
+import numpy as np
+from sumo_rss.rss.junction_kernel import junction_pairs
+i, f = np.zeros(0, dtype=np.int64), np.zeros(0)
+junction_pairs(i, i, f, i, np.zeros(1, dtype=np.int64), i, i, f, f, np.zeros(0, dtype=np.int8), i,
+               np.zeros(0, dtype=bool), i, i, f, f, np.zeros((0, 10)))
+print(time.perf_counter() - started, time.process_time() - cpu)
+"""
+
+
+def first_call_s() -> list[list[float]]:
+    """[s] [wall, CPU] of the junction kernel's first call with an empty numba cache, then from the cache it
+    left."""
+    with tempfile.TemporaryDirectory(prefix="numba_cache_") as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache, "PYTHONPATH": str(REPO)}
+        return [[float(x) for x in subprocess.run([sys.executable, "-c", FIRST_CALL], env=env, check=True, text=True,
+                                                  capture_output=True).stdout.split()] for _ in range(2)]
+
+
+def junction_time(snapshots: list, network: RoadNetwork, auditor: Auditor) -> tuple[float, int]:
+    """([s] spent in the junction situations of ``snapshots``, their rows), each step's vehicle frame built as the
+    auditor builds it (untimed)."""
+    routes, spent, rows = RouteTable(network), 0.0, 0
+    for snapshot in snapshots:
+        moving = auditor.params.arrays(snapshot, held=False)
+        frame = vehicle_frame(snapshot, network, auditor.params.hold(moving, snapshot), routes.remaining(snapshot),
+                              moving)
+        started = time.perf_counter()
+        rows += len(intersection_situations(snapshot, frame, network, auditor.junctions,
+                                            horizon=2.0 * float(frame.reach.max(initial=0.0)) + 20.0))
+        spent += time.perf_counter() - started
+    return spent, rows
 
 
 def main() -> None:
@@ -31,7 +75,10 @@ def main() -> None:
         while not session.finished:
             snapshots.append(session.step())
     sim_wall = time.perf_counter() - started
-    auditor = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec))
+    network = RoadNetwork.from_file(spec.net_file)
+    auditor = Auditor(network, param_resolver(spec))
+    auditor.observe(snapshots[0])  # the junction kernel loaded (its first call is timed on its own below)
+    auditor = Auditor(network, param_resolver(spec))
     junction_pair_steps = 0
     started = time.perf_counter()
     for snapshot in snapshots:
@@ -44,10 +91,17 @@ def main() -> None:
                "audit_ms_per_step": 1000 * audit_wall / len(snapshots), "pair_steps": auditor.pair_steps,
                "pair_steps_per_s": auditor.pair_steps / audit_wall, "junction_pair_steps": junction_pair_steps,
                "episodes": len(result.episodes), "junction_episodes": int(junction)}
+    spent, rows = junction_time(snapshots, network, auditor)
+    (compile_s, compile_cpu), (cached_s, cached_cpu) = first_call_s()
+    figures.update({"junction_ms_per_step": 1000 * spent / len(snapshots), "junction_rows": rows,
+                    "junction_rows_per_s": rows / spent, "jit_compile_s": compile_s, "jit_compile_cpu_s": compile_cpu,
+                    "jit_cached_s": cached_s, "jit_cached_cpu_s": cached_cpu})
     record("intersection_audit", figures, options)
     print(f"intersection_tls: audit {figures['audit_only_rtf']:.0f}x real time alone, sim+audit "
           f"{figures['sim_plus_audit_rtf']:.0f}x, {figures['pair_steps_per_s'] / 1e6:.2f} M pair-steps/s, "
-          f"{figures['audit_ms_per_step']:.2f} ms/step, {junction} junction episodes")
+          f"{figures['audit_ms_per_step']:.2f} ms/step, {junction} junction episodes; junction situations "
+          f"{figures['junction_ms_per_step']:.3f} ms/step, {figures['junction_rows_per_s'] / 1e6:.2f} M rows/s; "
+          f"kernel's first call {compile_s:.1f} s compiling ({compile_cpu:.1f} s CPU), {cached_s:.1f} s from the cache")
 
 
 if __name__ == "__main__":

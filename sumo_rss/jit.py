@@ -10,7 +10,8 @@ only what numpy over arrays and numba over scalars both accept: arithmetic, comp
 objects (``p.lon_brake_min``) are dataclasses in numpy code and named tuples of floats in the kernel
 (:data:`RssRow`).
 
-numba is imported only by :func:`register` (the kernel's import): the auditor never pays its ~0.5 s import.
+numba is imported only by :func:`register` (a kernel module's import): by the planner, and by the auditor's junction
+situations (:mod:`sumo_rss.rss.junction_kernel`, imported at their first call).
 
 **Compiled-code cache.** The kernel is compiled with ``cache=True``. numba checks a cached function only against
 its own source file, not against the files of the functions it calls (numba's documented limit): a cache built
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import sys
+import re
 from collections import namedtuple
 from pathlib import Path
 from typing import Any, Callable
@@ -135,20 +136,25 @@ def _register_one(target: Callable, fn: Callable) -> None:
 
 def cache_sources() -> list[str]:
     """The modules whose source stamps the kernel's cache: every sumo_rss module that defines jitable or kernel
-    functions (not a test's own: the stamp must be the same in every process)."""
-    return sorted(name for name in {fn.__module__ for _, fn in _JITABLE} | _KERNEL_MODULES | {__name__}
-                  if name.split(".")[0] == __name__.split(".")[0])
+    functions, found in the package's files (not among the modules imported so far: the stamp must be the same in
+    every process, whatever it imported; an audit imports none of the planner's, a test run all of them, and each
+    recompiled what the other had cached)."""
+    return [".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts) for path in _marked_files()]
+
+
+def _marked_files() -> list[Path]:
+    """The package's source files that define jitable, compiled_as or kernel functions, sorted."""
+    marked = re.compile(r"^@(jitable|kernel|compiled_as)\b|^jitable\(", re.MULTILINE)
+    return sorted(path for path in PACKAGE.rglob("*.py") if marked.search(path.read_text("utf-8")))
 
 
 @functools.lru_cache(maxsize=1)
 def _source_stamp() -> str:
     """A hash of the source of every :func:`cache_sources` module (what a cached kernel was compiled from)."""
     digest = hashlib.sha256()
-    for name in cache_sources():
-        path = getattr(sys.modules.get(name), "__file__", None)
-        if path is not None:
-            digest.update(name.encode())
-            digest.update(Path(path).read_bytes())
+    for path in _marked_files():
+        digest.update(path.relative_to(PACKAGE.parent).as_posix().encode())
+        digest.update(path.read_bytes())
     return digest.hexdigest()
 
 

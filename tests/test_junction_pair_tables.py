@@ -9,7 +9,7 @@ import pytest
 
 from sumo_rss.road.junctions import SIGNAL_RANK, JunctionModel
 from sumo_rss.road.network import RoadNetwork
-from sumo_rss.rss.intersection import conflicting_entries
+from sumo_rss.rss.junction_kernel import conflicting_entries
 from sumo_rss.sumo_home import sumo_home
 
 CITY = sumo_home() / "tools" / "game" / "DRT" / "osm.net.xml"
@@ -47,7 +47,8 @@ def test_entry_pairs_are_those_of_every_pair_of_entries_in_the_same_order(juncti
     crowded = np.flatnonzero(np.isin(junction, busiest))
     for size in (0, 1, 5, 40, 300):
         links = np.concatenate([rng.choice(crowded, size), rng.integers(0, len(junctions.links), size // 3)])
-        i, j, k = conflicting_entries(links, junctions.conflict_pairs.pairs)
+        pairs = junctions.conflict_pairs.pairs
+        i, j, k = conflicting_entries(links, pairs.indptr, pairs.other)
         ti, tj = np.triu_indices(len(links), 1)
         share = junctions.area_index[links[ti], links[tj]] >= 0
         assert i.tolist() == ti[share].tolist() and j.tolist() == tj[share].tolist()

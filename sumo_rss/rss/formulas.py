@@ -83,6 +83,37 @@ def lon_reach(v: Any, p: Any, brake: Any) -> np.ndarray:
     return worst_case_stopping_distance(v, p.lon_accel_max, p.response_time, p.max_speed_on_accel, brake)
 
 
+@jitable(quiet=True)
+def time_to_cover(v: Any, distance: Any, response_time: Any, accel_response: Any, accel_after: Any,
+                  speed_cap: Any) -> np.ndarray:
+    """Time [s] to cover ``distance`` [m] from speed ``v`` [m/s]: ``accel_response`` during ρ (speed floored at
+    0, capped at max(v_cap, v) when accelerating), then ``accel_after`` (< 0: braking). inf if the car stops
+    first; 0 for distance <= 0. Accelerations are signed [m/s²]."""
+    v, d, rho, a1, a2 = as_float(v), as_float(distance), response_time, accel_response, accel_after
+    # Phase 1 (ρ). Accelerating: up to the cap at t_c, then cruising. Braking: possibly to a standstill.
+    top = select(a1 > 0, np.minimum(np.maximum(speed_cap, v), v + a1 * rho), v)
+    t_c = select(a1 > 0, (top - v) / select(a1 > 0, a1, 1.0), 0.0)
+    d_c = v * t_c + 0.5 * a1 * t_c * t_c
+    stop_1 = select(a1 < 0, v / select(a1 < 0, -a1, 1.0), np.inf)
+    braking_stops = stop_1 < rho
+    v_rho = select(a1 > 0, top, select(braking_stops, 0.0, v + np.minimum(a1, 0.0) * rho))
+    d_rho = select(a1 > 0, d_c + top * (rho - t_c),
+                   select(braking_stops, v * v / (2.0 * select(a1 < 0, -a1, 1.0)),
+                          v * rho + 0.5 * np.minimum(a1, 0.0) * rho * rho))
+    # Time within phase 1.
+    t_acc = select(d <= d_c, select(np.abs(a1) > 0, (-v + np.sqrt(v * v + 2.0 * a1 * d)) / a1, d / v),
+                   t_c + (d - d_c) / top)
+    t_brake1 = (v - np.sqrt(np.maximum(v * v + 2.0 * a1 * d, 0.0))) / select(a1 < 0, -a1, 1.0)
+    t_first = select(a1 > 0, t_acc, select(a1 < 0, t_brake1, d / v))
+    # Phase 2: braking at accel_after from v_rho.
+    rest = d - d_rho
+    disc = v_rho * v_rho + 2.0 * a2 * rest
+    t_second = rho + (v_rho - np.sqrt(np.maximum(disc, 0.0))) / select(a2 < 0, -a2, 1.0)
+    reachable_2 = (v_rho > 0) & (disc >= 0) & (a2 < 0)
+    t = select(d <= d_rho, t_first, select(reachable_2, t_second, np.inf))
+    return select(d <= 0.0, 0.0, select(np.isfinite(t) & (t >= 0), t, np.inf))
+
+
 # The safe distances combine per-car terms; the auditor computes those terms once per vehicle and combines them
 # per pair with the same functions, so both paths give bit-identical numbers.
 @jitable

@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
+from ..jit import jitable, select
 from ..road.junctions import JunctionModel
-from ..road.link_pairs import LinkPairList, expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
-from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir
-from .situations import (RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP, SITUATION_CODES, PairSituations,
-                         SituationType, VehicleFrame)
+from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir, time_to_cover
+from .params import PARAM_NAMES
+from .situations import SITUATION_CODES, PairSituations, SituationType, VehicleFrame
 
 TIME_PRECISION = 1e-3  # [s] arrival must follow exit by more than this (ad_rss's Duration tolerance)
 JUNCTIONS_AHEAD = 3  # further junctions along a route (after the next) that a vehicle within the horizon takes part in
@@ -38,39 +38,6 @@ KIND_SIGNAL = SITUATION_CODES.index(SituationType.INTERSECTION_PRIORITY)
 KIND_YIELD = SITUATION_CODES.index(SituationType.INTERSECTION_YIELD)
 KIND_SAME = SITUATION_CODES.index(SituationType.INTERSECTION_SAME_PRIORITY)
 PRIORITY_SAME, PRIORITY_A, PRIORITY_B = 0, 1, 2
-
-
-def time_to_cover(v: Any, distance: Any, response_time: Any, accel_response: Any, accel_after: Any,
-                  speed_cap: Any) -> np.ndarray:
-    """Time [s] to cover ``distance`` [m] from speed ``v`` [m/s]: ``accel_response`` during ρ (speed floored at
-    0, capped at max(v_cap, v) when accelerating), then ``accel_after`` (< 0: braking). inf if the car stops
-    first; 0 for distance <= 0. Accelerations are signed [m/s²]."""
-    v, d = np.broadcast_arrays(np.asarray(v, dtype=float), np.asarray(distance, dtype=float))
-    rho, a1, a2, cap = (np.broadcast_to(np.asarray(x, dtype=float), v.shape)
-                        for x in (response_time, accel_response, accel_after, speed_cap))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # Phase 1 (ρ). Accelerating: up to the cap at t_c, then cruising. Braking: possibly to a standstill.
-        top = np.where(a1 > 0, np.minimum(np.maximum(cap, v), v + a1 * rho), v)
-        t_c = np.where(a1 > 0, (top - v) / np.where(a1 > 0, a1, 1.0), 0.0)
-        d_c = v * t_c + 0.5 * a1 * t_c * t_c
-        stop_1 = np.where(a1 < 0, v / np.where(a1 < 0, -a1, 1.0), np.inf)
-        braking_stops = stop_1 < rho
-        v_rho = np.where(a1 > 0, top, np.where(braking_stops, 0.0, v + np.minimum(a1, 0.0) * rho))
-        d_rho = np.where(a1 > 0, d_c + top * (rho - t_c),
-                         np.where(braking_stops, v * v / (2.0 * np.where(a1 < 0, -a1, 1.0)),
-                                  v * rho + 0.5 * np.minimum(a1, 0.0) * rho * rho))
-        # Time within phase 1.
-        t_acc = np.where(d <= d_c, np.where(np.abs(a1) > 0, (-v + np.sqrt(v * v + 2.0 * a1 * d)) / a1, d / v),
-                         t_c + (d - d_c) / top)
-        t_brake1 = (v - np.sqrt(np.maximum(v * v + 2.0 * a1 * d, 0.0))) / np.where(a1 < 0, -a1, 1.0)
-        t_first = np.where(a1 > 0, t_acc, np.where(a1 < 0, t_brake1, d / v))
-        # Phase 2: braking at accel_after from v_rho.
-        rest = d - d_rho
-        disc = v_rho * v_rho + 2.0 * a2 * rest
-        t_second = rho + (v_rho - np.sqrt(np.maximum(disc, 0.0))) / np.where(a2 < 0, -a2, 1.0)
-        reachable_2 = (v_rho > 0) & (disc >= 0) & (a2 < 0)
-        t = np.where(d <= d_rho, t_first, np.where(reachable_2, t_second, np.inf))
-    return np.where(d <= 0.0, 0.0, np.where(np.isfinite(t) & (t >= 0), t, np.inf))
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,27 +66,13 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
     safe distance only if it can stop both behind the front car on the line and before the area, against a
     standing front car (the virtual line alone measured a left-turner standing 7.4 m into the area as 7.4 m further
     ahead of the oncoming car than it was; the area alone would let a car with priority that could stop before it
-    be the one 'behind' a car running its yield, which is not in front of it)."""
+    be the one 'behind' a car running its yield, which is not in front of it). The formulas are
+    :func:`stop_and_front`, :func:`~.formulas.time_to_cover` and :func:`no_time_overlap`, which the auditor's
+    compiled junction kernel (:mod:`.junction_kernel`) calls per pair."""
     enter_a, enter_b = np.asarray(enter_a, dtype=float), np.asarray(enter_b, dtype=float)
-    priority = np.asarray(priority)
-    # 1. Able to stop before the area (a car inside can not).
-    need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
-    need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
-    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), need_a)
-    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), need_b)
-    able = np.where(priority == PRIORITY_A, stop_b, np.where(priority == PRIORITY_B, stop_a, stop_a & stop_b))
-    # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
-    a_front = enter_b > enter_a + np.asarray(length_a)
-    b_front = enter_a > enter_b + np.asarray(length_b)
-    crossing = np.asarray(crossing, dtype=bool)
-    gap = np.where(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b)  # along the virtual line
-    # Where the paths cross, also short of the area: the front car may stand in it across the rear car's path.
-    gap = np.where(crossing, np.minimum(gap, np.maximum(np.where(a_front, enter_b, enter_a), 0.0)), gap)
-    v_a_lead, v_b_lead = (np.where(crossing, 0.0, v) for v in (v_a, v_b))
-    d_min = np.where(a_front, lon_safe_distance_same_dir(v_b, v_a_lead, p_b, p_a),
-                     lon_safe_distance_same_dir(v_a, v_b_lead, p_a, p_b))
-    in_front = (a_front | b_front) & is_safe_distance(gap, d_min)
-    # 3. No time overlap: earliest arrival of one after the latest exit of the other (the four times in one call).
+    able, in_front, a_front, b_front, need_a, need_b = stop_and_front(
+        v_a, enter_a, length_a, p_a, v_b, enter_b, length_b, p_b, np.asarray(priority), np.asarray(crossing, dtype=bool))
+    # The four crossing times in one call.
     arrive_a, arrive_b, leave_a, leave_b = time_to_cover(*_side_by_side(
         (v_a, v_b, v_a, v_b), (np.maximum(enter_a, 0.0), np.maximum(enter_b, 0.0), exit_a, exit_b),
         (p_a.response_time, p_b.response_time, p_a.response_time, p_b.response_time),
@@ -127,9 +80,40 @@ def intersection_safety(v_a: Any, enter_a: Any, exit_a: Any, length_a: Any, p_a:
         (-np.asarray(p_a.lon_brake_min), -np.asarray(p_b.lon_brake_min), -np.asarray(p_a.lon_brake_max),
          -np.asarray(p_b.lon_brake_max)),
         (p_a.max_speed_on_accel, p_b.max_speed_on_accel, p_a.max_speed_on_accel, p_b.max_speed_on_accel)))
-    no_overlap = (arrive_a > leave_b + TIME_PRECISION) | (arrive_b > leave_a + TIME_PRECISION) | \
+    return IntersectionSafety(able, in_front, no_time_overlap(arrive_a, arrive_b, leave_a, leave_b), a_front, b_front,
+                              need_a, need_b)
+
+
+@jitable
+def stop_and_front(v_a: Any, enter_a: Any, length_a: Any, p_a: Any, v_b: Any, enter_b: Any, length_b: Any,
+                   p_b: Any, priority: Any, crossing: Any) -> tuple:
+    """Conditions 1 and 2 of :func:`intersection_safety` (same arguments): (able to stop, in front, a wholly in
+    front of b, b wholly in front of a, what a needs to stop before the area D(v) + λ [m], what b needs [m])."""
+    # 1. Able to stop before the area (a car inside can not).
+    need_a = lon_reach(v_a, p_a, p_a.lon_brake_min) + p_a.min_lon_gap
+    need_b = lon_reach(v_b, p_b, p_b.lon_brake_min) + p_b.min_lon_gap
+    stop_a = is_safe_distance(np.maximum(enter_a, 0.0), need_a)
+    stop_b = is_safe_distance(np.maximum(enter_b, 0.0), need_b)
+    able = select(priority == PRIORITY_A, stop_b, select(priority == PRIORITY_B, stop_a, stop_a & stop_b))
+    # 2. One wholly in front of the other on the virtual line, at a safe same-direction distance.
+    a_front = enter_b > enter_a + length_a
+    b_front = enter_a > enter_b + length_b
+    gap = select(a_front, enter_b - enter_a - length_a, enter_a - enter_b - length_b)  # along the virtual line
+    # Where the paths cross, also short of the area: the front car may stand in it across the rear car's path.
+    gap = select(crossing, np.minimum(gap, np.maximum(select(a_front, enter_b, enter_a), 0.0)), gap)
+    v_a_lead, v_b_lead = select(crossing, 0.0, v_a), select(crossing, 0.0, v_b)
+    d_min = select(a_front, lon_safe_distance_same_dir(v_b, v_a_lead, p_b, p_a),
+                   lon_safe_distance_same_dir(v_a, v_b_lead, p_a, p_b))
+    in_front = (a_front | b_front) & is_safe_distance(gap, d_min)
+    return able, in_front, a_front, b_front, need_a, need_b
+
+
+@jitable
+def no_time_overlap(arrive_a: Any, arrive_b: Any, leave_a: Any, leave_b: Any) -> np.ndarray:
+    """Condition 3: one car's earliest arrival [s] comes after the other's latest exit [s], or neither can
+    arrive."""
+    return (arrive_a > leave_b + TIME_PRECISION) | (arrive_b > leave_a + TIME_PRECISION) | \
         (np.isinf(arrive_a) & np.isinf(arrive_b))
-    return IntersectionSafety(able, in_front, no_overlap, a_front, b_front, need_a, need_b)
 
 
 def _side_by_side(*groups: tuple[Any, ...]) -> list[np.ndarray]:
@@ -179,53 +163,20 @@ def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any,
 
 
 def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray, network: RoadNetwork,
-                     junctions: JunctionModel, horizon: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     junctions: JunctionModel, horizon: float, levels: int = 0,
+                     route_edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
     [m], negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane
     within ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its
-    lane where that is unknown, -1)."""
-    inside = np.flatnonzero(junctions.lane_link[lane] >= 0)
-    to_end = network.lane_length[lane] - lane_pos
-    r, links = _links_ahead(junctions, lane, to_end, next_edge, horizon)
-    rows = np.concatenate([inside, r])
-    links = np.concatenate([junctions.lane_link[lane[inside]], links])
-    pos = np.concatenate([junctions.lane_link_offset[lane[inside]] + lane_pos[inside], -to_end[r]])
-    return rows, links, pos
+    lane where that is unknown, -1). With ``levels`` and the vehicles' ``route_edges``: also the entries at up to
+    ``levels`` further junctions along each known route whose links start within ``horizon``
+    (:func:`.junction_kernel.entries`, compiled)."""
+    from .junction_kernel import entries  # numba: only where junctions are
 
-
-def _links_ahead(junctions: JunctionModel, lane: np.ndarray, to_start: np.ndarray, next_edge: np.ndarray,
-                 horizon: float) -> tuple[np.ndarray, np.ndarray]:
-    """(index into ``lane``, link) of the links from each lane whose start is within ``horizon`` [m]
-    (``to_start``) that lead into the route's ``next_edge`` (every link where that is unknown, -1)."""
-    cand = junctions.lane_links[lane]
-    ok = (cand >= 0) & (to_start[:, None] <= horizon) & \
-        ((next_edge[:, None] < 0) | (junctions.link_to_edge[np.maximum(cand, 0)] == next_edge[:, None]))
-    r, c = np.nonzero(ok)
-    return r, cand[r, c]
-
-
-def entries_beyond(rows: np.ndarray, links: np.ndarray, pos: np.ndarray, route_edges: np.ndarray,
-                   network: RoadNetwork, junctions: JunctionModel, horizon: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The entries of :func:`junction_entries` (vehicle rows, links, positions [m]) and those at the next junctions
-    along each vehicle's route, as long as a link starts within ``horizon`` [m] of the front bumper (at most
-    JUNCTIONS_AHEAD more): where edges between junctions are short (a roundabout's 20 m) a car is in its conflicts
-    at the next junction before it reaches the edge leading there. Followed from the lane each link leads into;
-    not where the route is unknown."""
-    found = [(rows, links, pos)]
-    after = junctions.link_length[links] - pos  # [m] from the front bumper to the end of the link's path
-    for _ in range(JUNCTIONS_AHEAD):
-        lane = junctions.link_to_lane[links]
-        start = after + network.lane_length[lane]  # [m] to the start of the next link
-        next_edge = next_route_edge(route_edges[rows], network.lane_edge[lane])
-        known = np.flatnonzero(next_edge >= 0)  # beyond the next junction only along a known route
-        r, links = _links_ahead(junctions, lane[known], start[known], next_edge[known], horizon)
-        if r.size == 0:
-            break
-        rows, start = rows[known[r]], start[known[r]]
-        found.append((rows, links, -start))
-        after = start + junctions.link_length[links]
-    return tuple(np.concatenate(parts) for parts in zip(*found))  # type: ignore[return-value]
+    return entries(lane, lane_pos, next_edge, np.zeros((0, 0), dtype=np.int64) if route_edges is None else route_edges,
+                   levels, float(horizon), junctions.lane_link, junctions.lane_link_offset, junctions.lane_links,
+                   junctions.link_to_edge, junctions.link_to_lane, junctions.link_length, network.lane_length,
+                   network.lane_edge)
 
 
 def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork,
@@ -234,50 +185,31 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), or already on the link's internal lanes."""
-    rows, links, pos = entries_beyond(*junction_entries(frame.lane, frame.lane_pos, next_route_edge(
-        frame.route_edges, frame.edge), network, junctions, horizon), frame.route_edges, network, junctions, horizon)
-    table = junctions.conflict_pairs
-    i, j, k = conflicting_entries(links, table.pairs)
-    share = rows[i] != rows[j]
-    i, j, k = i[share], j[share], k[share]
-    # Name each situation by id order: a < b; ka / kb: the link pairs (a's link, b's) and (b's, a's).
-    swap = snapshot.ids[rows[i]] > snapshot.ids[rows[j]]
-    ea, eb = np.where(swap, j, i), np.where(swap, i, j)
-    ka = np.where(swap, table.pairs.reverse[k], k)
-    kb = table.pairs.reverse[ka]
-    ra, rb, la, lb = rows[ea], rows[eb], links[ea], links[eb]
-    length = snapshot.length
-    enter_a, exit_a = table.start[ka] - pos[ea], table.end[ka] - pos[ea] + length[ra]
-    enter_b, exit_b = table.start[kb] - pos[eb], table.end[kb] - pos[eb] + length[rb]
-    keep = (exit_a > 0.0) & (exit_b > 0.0)  # a car that has left the area is in no conflict there any more
-    if not keep.any():  # most steps of a city: nothing to evaluate, which costs numpy's per-call overhead alone
-        return _no_situations()
-    ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b = (
-        x[keep] for x in (ra, rb, la, lb, ka, enter_a, enter_b, exit_a, exit_b))
-    area = table.area[ka]
-    priority, by_signal = link_priority(junctions, junctions.signal_ranks(snapshot.tls_states), la, lb,
-                                        table.static_priority[ka])
-    kind = np.where(by_signal, KIND_SIGNAL, np.where(priority != PRIORITY_SAME, KIND_YIELD, KIND_SAME))
-    v_a, v_b = np.maximum(frame.v_lon[ra], 0.0), np.maximum(frame.v_lon[rb], 0.0)
+    rows, links, pos = junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge),
+                                        network, junctions, horizon, JUNCTIONS_AHEAD, frame.route_edges)
+    from .junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs  # numba: only where junctions are
+
+    table, pairs = junctions.conflict_pairs, junctions.conflict_pairs.pairs
+    id_rank = np.empty(len(snapshot.ids), dtype=np.int64)
+    id_rank[np.argsort(snapshot.ids, kind="stable")] = np.arange(len(snapshot.ids))
     p = frame.params
-    p_a, p_b = p.take(ra), p.take(rb)
-    safety = intersection_safety(v_a, enter_a, exit_a, length[ra], p_a, v_b, enter_b, exit_b, length[rb], p_b,
-                                 priority, junctions.area_crossing[area])
-    rules = (safety.able_to_stop * RULE_ABLE_TO_STOP + safety.in_front * RULE_IN_FRONT +
-             safety.no_time_overlap * RULE_NO_OVERLAP).astype(np.int8)
-    # Margin of the yielding car (with equal priority, of the one deeper in trouble): distance to the area minus
-    # what it needs to stop before it.
-    need_a, need_b = safety.need_a, safety.need_b
-    a_yields = (priority == PRIORITY_B) | ((priority == PRIORITY_SAME) & (enter_a - need_a <= enter_b - need_b))
-    n = len(ra)
+    floats, ints = junction_pairs(
+        rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, table.start, table.end,
+        table.static_priority, table.area, junctions.area_crossing, junctions.link_tls_index,
+        junctions.signal_ranks(snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
+        np.column_stack([getattr(p, name) for name in PARAM_NAMES]))
+    if not ints.shape[1]:  # most steps of a city: nothing to evaluate
+        return _no_situations()
+    f, c = dict(zip(FLOAT_COLUMNS, floats)), dict(zip(INT_COLUMNS, ints))
+    n = ints.shape[1]
     nan = np.full(n, np.nan)
     return PairSituations(
-        a=ra, b=rb, kind=kind, a_is_rear=~safety.a_in_front, a_is_left=np.zeros(n, dtype=bool),
-        lon_gap=np.where(a_yields, enter_a, enter_b), lat_gap=nan, v_lon_a=v_a, v_lon_b=v_b,
-        v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=np.where(a_yields, need_a, need_b), lat_d_min=nan,
-        lon_safe=safety.safe, lat_safe=np.zeros(n, dtype=bool), rules=rules, priority=priority.astype(np.int8),
-        in_front=np.where(safety.a_in_front, 1, np.where(safety.b_in_front, 2, 0)).astype(np.int8),
-        area=table.area_id[ka], enter_a=enter_a, enter_b=enter_b)
+        a=c["a"], b=c["b"], kind=c["kind"], a_is_rear=c["a_is_rear"].astype(bool), a_is_left=np.zeros(n, dtype=bool),
+        lon_gap=f["lon_gap"], lat_gap=nan, v_lon_a=f["v_lon_a"], v_lon_b=f["v_lon_b"], v_lat_a=np.zeros(n),
+        v_lat_b=np.zeros(n), lon_d_min=f["lon_d_min"], lat_d_min=nan, lon_safe=c["safe"].astype(bool),
+        lat_safe=np.zeros(n, dtype=bool), rules=c["rules"].astype(np.int8), priority=c["priority"].astype(np.int8),
+        in_front=c["in_front"].astype(np.int8), area=table.area_id[c["pair"]], enter_a=f["enter_a"],
+        enter_b=f["enter_b"])
 
 
 def _no_situations() -> PairSituations:
@@ -288,19 +220,3 @@ def _no_situations() -> PairSituations:
                           v_lon_a=none, v_lon_b=none, v_lat_a=none, v_lat_b=none, lon_d_min=none, lat_d_min=none,
                           lon_safe=flags, lat_safe=flags, rules=codes, priority=codes, in_front=codes,
                           area=np.zeros(0, dtype=object), enter_a=none, enter_b=none)
-
-
-def conflicting_entries(links: np.ndarray, pairs: LinkPairList) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(i, j, k): every two entries i < j whose links share a conflict area, in (i, j) order, and the number of
-    their link pair (links[i], links[j]) in ``pairs``. Found through each entry's conflicting links and the entries
-    on those: the work and memory grow with the pairs that conflict, not with the square of the entries."""
-    owner, k = pairs.of(links)  # every conflicting link of every entry
-    by_link = np.argsort(links, kind="stable")
-    on_link = links[by_link]
-    foe = pairs.other[k]
-    hit, at = expand_ranges(np.searchsorted(on_link, foe, side="left"), np.searchsorted(on_link, foe, side="right"))
-    i, j, k = owner[hit], by_link[at], k[hit]
-    keep = i < j  # each pair is found from both entries
-    i, j, k = i[keep], j[keep], k[keep]
-    order = np.lexsort((j, i))
-    return i[order], j[order], k[order]
