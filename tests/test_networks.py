@@ -15,7 +15,7 @@ from sumo_rss.road.build import build_network, network_dirs, without_generator_h
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.sumo_home import sumo_tool
 
-NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_priority"]
+NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_priority", "intersection_occluded"]
 
 
 def _net(name: str) -> sumolib.net.Net:

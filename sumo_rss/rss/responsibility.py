@@ -18,7 +18,7 @@ from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
-from .records import EVASIVE_CONSTRAINT, RULE5_UNCHECKED
+from .records import EVASIVE_CONSTRAINT, OCCLUSION_CONSTRAINT, RULE5_UNCHECKED
 from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
 
@@ -46,6 +46,9 @@ class StepInput:
     areas: AreaRules | None = None
     area_number: np.ndarray | None = None
     accel_tolerance: float = EPS_ACCEL  # [m/s²] on the acceleration bounds (wider for accelerations measured coarsely)
+    # Rule 4 (:mod:`.occlusion_track`): sorted pair keys and the start [s] of their cars' current run of seeing each
+    # other (+inf while hidden); a response is owed from max(t_b, that start) + ρ. None: every car sees every car.
+    seen_from: tuple[np.ndarray, np.ndarray] | None = None
 
 
 RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
@@ -323,7 +326,11 @@ class ResponsibilityTracker:
             e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin,
                                                               sit.lat_gap[rows] - sit.lat_d_min[rows]), e.min_lat_margin)
         e.t_last = np.where(candidate, t, e.t_last)
-        judged = t > e.t_b + TIME_EPS
+        start = e.t_b  # the response starts when the cars can see each other (rule 4)
+        if step.seen_from is not None and len(step.seen_from[0]):
+            seen, at = _lookup(step.seen_from[0], e.keys)
+            start = np.where(seen, np.maximum(e.t_b, step.seen_from[1][at]), e.t_b)
+        judged = t > start + TIME_EPS
         by_uid = np.argsort(step.uids)
         own = by_uid[np.searchsorted(step.uids[by_uid], e.uids)]  # [n, 2] snapshot rows of the cars
         pair = candidate[:, None]
@@ -341,7 +348,7 @@ class ResponsibilityTracker:
             e.stood_short |= pair & progress["stood_short"]
             e.stopping = np.where(pair, progress["stopping"], e.stopping)
         rho = p.response_time[cars]
-        tau = (t - e.t_b)[:, None]
+        tau = (t - np.minimum(start, t))[:, None]  # 0 while hidden (nothing is judged then)
         in_response = tau <= rho + TIME_EPS
         # The step that ends ρ inside it (ρ not a multiple of the step): its mean acceleration may be a_acc for
         # the part before t_b + ρ and must be −b after it, so its bound is the time-weighted mix of the two.
@@ -484,6 +491,9 @@ class ResponsibilityTracker:
         rows = self._on_close(record, joinable, window, time)
         parts.rows[:] = [held for held in parts.rows if held[2]["constraint"] != EVASIVE_CONSTRAINT] + \
             [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
+        for row in rows:  # rule 4's unreasonable speed makes a car responsible, also for a later part
+            if row["constraint"] == OCCLUSION_CONSTRAINT:
+                parts.fixed[0 if row["vehicle_id"] == record["vehicle_a"] else 1] = True
 
 
 def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray
