@@ -4,11 +4,14 @@ east along y = −1.6 m (13.89 m/s), the minor one south to north along x = +1.6
 1.8 m, drivers 1.5 m behind the front bumper; ad_rss parameters (ρ 1 s, a_acc 3.5, b_min 4 m/s²); steps of 0.1 s."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
+import tomllib
 
-from conftest import NETWORKS
-from sumo_rss.errors import SumoRssError
+from conftest import NETWORKS, SCENARIOS, run_cli, write_scenario
+from sumo_rss.errors import ScenarioError, SumoRssError
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
 from sumo_rss.rss.occlusion import OccluderEdges, OcclusionParams, line_of_sight, read_occluders, segment_hits_box
@@ -179,3 +182,39 @@ def test_a_car_hidden_at_the_speed_limit_leaves_the_other_to_respond_from_exposu
     assert hidden.occluded_pair_steps == 17
     seen = _crossing(net, 13.89, -68.75, occluded=False)
     assert seen.violations.t_start_s.tolist() == [pytest.approx(2.7)]
+
+
+def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path):
+    """60 s of intersection_occluded (its [rss] occluders: the corner buildings), audited online and again offline
+    from its FCD with its scenario.toml: the same bytes in every CSV, occlusion.csv included."""
+    proc = run_cli("run", str(SCENARIOS / "intersection_occluded.toml"), "--duration", "60", "--out",
+                   str(tmp_path / "runs"), "--fcd", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    run = tmp_path / "runs" / "intersection_occluded" / "0"
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["occluded_pair_steps"] > 0
+    assert (run / "occlusion.csv").read_bytes().count(b"\n") > 3
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"), "--vtypes",
+                   str(run / "routes.rou.xml"), "--collisions", str(run / "collisions.xml"), "--scenario",
+                   str(run / "scenario.toml"), "--run-id", "intersection_occluded/0", "--out", str(tmp_path / "off"))
+    assert proc.returncode == 0, proc.stderr
+    assert "episodes hidden at some step" in proc.stdout
+    for name in ("episodes.csv", "violations.csv", "collisions.csv", "occlusion.csv"):
+        assert (tmp_path / "off" / name).read_bytes() == (run / name).read_bytes(), name
+
+
+def test_scenario_occluders_are_read_relative_to_the_scenario_and_checked(tmp_path):
+    data = tomllib.loads((SCENARIOS / "intersection_occluded.toml").read_text())
+    data["network"] = str(NET / "intersection_occluded.net.xml")
+    data["rss"]["occluders"] = ["buildings.poly.xml"]
+    (tmp_path / "buildings.poly.xml").write_bytes(POLY.read_bytes())
+    from sumo_rss.scenario import load_scenario
+
+    spec = load_scenario(write_scenario(tmp_path, data))
+    assert spec.rss.occlusion.enabled and spec.rss.occlusion.occluders == ((tmp_path / "buildings.poly.xml"),)
+    data["rss"]["occluders"] = ["missing.poly.xml"]
+    with pytest.raises(ScenarioError, match=r"occluders\[0\].*missing.poly.xml"):
+        load_scenario(write_scenario(tmp_path, data))
+    data["rss"].update(occluders=[], occlusion=True, occluded_speed_factor=0.5)
+    with pytest.raises(ScenarioError, match="occluded_speed_factor"):
+        load_scenario(write_scenario(tmp_path, data))
