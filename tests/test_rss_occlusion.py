@@ -218,3 +218,42 @@ def test_scenario_occluders_are_read_relative_to_the_scenario_and_checked(tmp_pa
     data["rss"].update(occluders=[], occlusion=True, occluded_speed_factor=0.5)
     with pytest.raises(ScenarioError, match="occluded_speed_factor"):
         load_scenario(write_scenario(tmp_path, data))
+
+
+def test_a_truck_between_two_cars_hides_them_from_each_other():
+    """Highway lane 1 (y = −5.25 m, 33.33 m/s): `rear` at 400 m, a 12 x 2.5 m truck 3.4 m high at 440 m, `front` at
+    470 m (front bumpers), all at 25 m/s. Rear to front: gap 65.5 m < d_min = 25 + 1.75 + 28.5²/8 − 25²/16 = 89.2 m,
+    dangerous from the first step (the rear car owes braking after ρ); it keeps its speed. The sight line from
+    (398.5, −5.25) to (468.5, −5.25) runs through the truck's box [428, 440] x [−6.5, −4.0]: hidden throughout, so the
+    rear car owes `front` nothing (without rule 4: responsible from 1.1 s). Its episode with the truck, which it sees,
+    is judged as always. A truck of 1.5 m hides nothing."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+
+    def audit(heights: dict[str, float] | None):
+        auditor = Auditor(net, ParamResolver("ad_rss"), signal_rule=False,
+                          occlusion=RULE4 if heights is not None else None, heights=heights)
+        for k in range(21):
+            t = round(0.1 * k, 6)
+            x = np.array([400.0, 440.0, 470.0]) + 25.0 * t
+            auditor.observe(WorldSnapshot(
+                time=t, ids=np.array(["rear", "truck", "front"]), x=x, y=np.full(3, -5.25), heading=np.zeros(3),
+                speed=np.full(3, 25.0), accel=np.zeros(3), lat_speed=np.zeros(3),
+                length=np.array([LENGTH, 12.0, LENGTH]), width=np.array([WIDTH, 2.5, WIDTH]),
+                lane_id=np.array(["hw0_1"] * 3), edge_id=np.array(["hw0"] * 3), lane_index=np.ones(3, int),
+                lane_pos=x, lat_pos=np.zeros(3), vclass=np.full(3, "background"),
+                vtype=np.array(["car", "truck", "car"]), signals=np.zeros(3, int), route_index=np.zeros(3, int),
+                route_edges=(("hw0", "hw1", "hw2"),) * 3))
+        return auditor.finish()
+
+    def blame(result) -> dict[str, str]:
+        return dict(zip(result.episodes.episode_key.str.rsplit("|", n=1).str[0], result.episodes.responsible))
+
+    hidden = audit({"car": 1.5, "truck": 3.4})
+    assert blame(hidden)["front|rear"] == "none" and blame(hidden)["rear|truck"] == "a"
+    assert hidden.occlusion[["episode_key", "occluded_at_t_b"]].values.tolist() == [["front|rear|1", True]]
+    assert np.isnan(hidden.occlusion.exposure_a_s[0]) and hidden.occluded_pair_steps == 21
+    seen = audit(None)
+    assert blame(seen)["front|rear"] == "b"
+    assert seen.violations.query("episode_key == 'front|rear|1'").t_start_s.tolist() == [pytest.approx(1.1)]
+    low = audit({"car": 1.5, "truck": 1.5})
+    assert blame(low)["front|rear"] == "b" and len(low.occlusion) == 0

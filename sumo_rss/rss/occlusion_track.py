@@ -134,6 +134,8 @@ class OcclusionTracker:
         hid = is_open & hidden_now[at]
         exposed = is_open & ~hid & h.hidden & known[at]
         h.exposure = np.where(exposed, t, h.exposure)
+        if np.any(exposed):
+            self._restart_lateral(e, at[exposed], situations, keys)
         summing = hid & h.first_run
         if np.any(summing):
             self._sum_speeds(snapshot, frame, situations, keys, e.keys[at[summing]], np.flatnonzero(summing))
@@ -187,6 +189,17 @@ class OcclusionTracker:
         return frame.sort_values(["t_b_s", "vehicle_a", "vehicle_b"], kind="stable", ignore_index=True)
 
     # -----------------------------------------------------------------------------------------------------
+    @staticmethod
+    def _restart_lateral(e, rows: np.ndarray, situations: PairSituations, keys: np.ndarray) -> None:
+        """The lateral response of the open episodes ``rows`` (of ``e``, the tracker's; their pairs dangerous now)
+        starts at this step, their exposure: its envelope from the lateral speeds towards the other car now."""
+        order = np.argsort(keys, kind="stable")
+        sit = order[np.searchsorted(keys[order], e.keys[rows])]
+        left = situations.a_is_left[sit]
+        e.u0[rows] = np.column_stack([np.where(left, -situations.v_lat_a[sit], situations.v_lat_a[sit]),
+                                      np.where(left, situations.v_lat_b[sit], -situations.v_lat_b[sit])])
+        e.lat_settled[rows] = False
+
     def _sum_speeds(self, snapshot: WorldSnapshot, frame: VehicleFrame, situations: PairSituations,
                     keys: np.ndarray, pair_keys: np.ndarray, hidden_rows: np.ndarray) -> None:
         """Add this step's speeds and reasonable limits of both cars to the hidden episodes ``hidden_rows``
