@@ -173,14 +173,12 @@ def line_of_sight(snapshot: WorldSnapshot, a: np.ndarray, b: np.ndarray, heights
     if len(tall) and len(a):
         cx, cy = snapshot.centres()
         half_l, half_w = 0.5 * snapshot.length[tall], 0.5 * snapshot.width[tall]
-        tree = cKDTree(np.column_stack([cx[tall], cy[tall]]))
         reach = 0.5 * np.hypot(bx - ax, by - ay) + float(np.hypot(half_l, half_w).max())
-        near = tree.query_ball_point(np.column_stack([0.5 * (ax + bx), 0.5 * (ay + by)]), reach)
-        count = np.fromiter((len(n) for n in near), dtype=np.int64, count=len(near))
-        pair = np.repeat(np.arange(len(a)), count)
-        k = np.fromiter((j for n in near for j in n), dtype=np.int64, count=int(count.sum()))
+        near = cKDTree(np.column_stack([0.5 * (ax + bx), 0.5 * (ay + by)])).sparse_distance_matrix(
+            cKDTree(np.column_stack([cx[tall], cy[tall]])), float(reach.max()), output_type="ndarray")
+        pair, k = near["i"].astype(np.int64), near["j"].astype(np.int64)
         other = tall[k]
-        third = (other != a[pair]) & (other != b[pair])
+        third = (near["v"] <= reach[pair]) & (other != a[pair]) & (other != b[pair])
         pair, k, other = pair[third], k[third], other[third]
         hit = segment_hits_box(ax[pair], ay[pair], bx[pair], by[pair], cx[other], cy[other],
                                snapshot.heading[other], half_l[k], half_w[k])

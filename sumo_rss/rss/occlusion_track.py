@@ -110,12 +110,10 @@ class OcclusionTracker:
             return
         t = snapshot.time
         e = tracker.open
-        found, pos = _lookup(self._keys, e.keys)
-        known = found & (len(self._keys) > 0)
+        known, pos = _lookup(self._keys, e.keys)
         hidden_now = known & ~np.isfinite(self._seen_from[pos] if len(self._keys) else np.zeros(len(e)))
-        self._keys, self._seen_from = self._keys[pos[known]], self._seen_from[pos[known]]  # open episodes' only
-        order = np.argsort(self._keys, kind="stable")
-        self._keys, self._seen_from = self._keys[order], self._seen_from[order]
+        # Only the open episodes' pairs are kept (sorted, as the episodes are).
+        self._keys, self._seen_from = self._keys[pos[known]], self._seen_from[pos[known]]
         h = self._hidden
         new = hidden_now & ~_lookup(h.serial, e.serial)[0]
         if np.any(new):
