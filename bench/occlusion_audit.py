@@ -58,8 +58,9 @@ def main() -> None:
                          "rule4_audit_ms_per_step": 1000 * with_s / len(snapshots),
                          "rule4_overhead": with_s / without_s - 1.0, "hidden_pair_steps": result.occluded_pair_steps,
                          "episodes": len(result.episodes), "hidden_episodes": len(result.occlusion)}
-        print(f"{name}: {figures[name]['audit_ms_per_step']:.2f} ms/step without rule 4, "
-              f"{figures[name]['rule4_audit_ms_per_step']:.2f} with it (+{100 * figures[name]['rule4_overhead']:.0f} %), "
+        f = figures[name]
+        print(f"{name}: {f['audit_ms_per_step']:.2f} ms/step without rule 4, "
+              f"{f['rule4_audit_ms_per_step']:.2f} with it (+{100 * f['rule4_overhead']:.0f} %), "
               f"{result.occluded_pair_steps} hidden pair-steps, {len(result.occlusion)} of {len(result.episodes)} "
               "episodes hidden at some step")
     record("occlusion_audit", figures, options)

@@ -26,25 +26,15 @@ GRID_CELL_M = 20.0  # [m] side of the grid cells that index the occluder polygon
 
 @dataclass(frozen=True)
 class OcclusionParams:
-    """Rule 4's settings (rss.md §9; ``[rss]`` keys of the same names with the ``occlu`` prefixes, docs/rss.md)."""
+    """Rule 4's settings (rss.md §9; the ``[rss]`` key of each is named in its comment; docs/rss.md "Rule 4")."""
 
-    enabled: bool = False  # on with ``occlusion = true`` or with occluder files (docs/rss.md "Rule 4")
+    enabled: bool = False  # (occlusion) rule 4 on; also on with occluder files; off by default (docs/rss.md)
     min_height_m: float = 1.6  # [m] road users taller than this block the sight line (occluder_min_height_m)
     speed_factor: float = 1.1  # a hidden car may drive at up to this times its lane's limit (occluded_speed_factor)
     yield_speed_ms: float = 8.3  # [m/s] the lower-priority hidden car near a conflict area (occluded_yield_speed_ms)
     yield_zone_m: float = 30.0  # [m] ... within this of the area (occluded_yield_zone_m)
     lat_speed_ms: float = 1.0  # [m/s] a hidden car's mean lateral speed (occluded_lat_speed_ms)
-    occluders: tuple[Path, ...] = ()  # SUMO additional files with <poly> occluders
-
-    def problems(self) -> list[str]:
-        """Every range rule this set breaks (empty when valid)."""
-        checks = (("occluder_min_height_m", self.min_height_m, 0.0, 20.0),
-                  ("occluded_speed_factor", self.speed_factor, 1.0, 10.0),
-                  ("occluded_yield_speed_ms", self.yield_speed_ms, 0.0, 100.0),
-                  ("occluded_yield_zone_m", self.yield_zone_m, 0.0, 1000.0),
-                  ("occluded_lat_speed_ms", self.lat_speed_ms, 0.0, 10.0))
-        return [f"{name} must be in [{low:g}, {high:g}], is {value:g}" for name, value, low, high in checks
-                if not low <= value <= high]
+    occluders: tuple[Path, ...] = ()  # (occluders) SUMO additional files with <poly> occluders
 
 
 @dataclass(frozen=True, eq=False)

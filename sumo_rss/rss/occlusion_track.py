@@ -231,7 +231,8 @@ class OcclusionTracker:
                                                                                  self.params.lat_speed_ms)):
                 if actual > bound + SPEED_EPS:
                     rows.append({"run_id": "", "episode_key": "", "vehicle_id": ids[car],
-                                 "vehicle_class": classes[car], "role": h.roles[i, car], "constraint": OCCLUSION_CONSTRAINT,
+                                 "vehicle_class": classes[car], "role": h.roles[i, car],
+                                 "constraint": OCCLUSION_CONSTRAINT,
                                  "bound": float(bound), "worst_actual": float(actual),
                                  "excess": float(actual - bound), "t_start_s": t_b, "t_end_s": float(h.t_hidden[i])})
                     break
