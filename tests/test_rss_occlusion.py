@@ -201,6 +201,14 @@ def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path
     assert "episodes hidden at some step" in proc.stdout
     for name in ("episodes.csv", "violations.csv", "collisions.csv", "occlusion.csv"):
         assert (tmp_path / "off" / name).read_bytes() == (run / name).read_bytes(), name
+    # Without the scenario: --occluders turns rule 4 on (and cannot be given with --scenario).
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"), "--vtypes",
+                   str(run / "routes.rou.xml"), "--occluders", str(POLY), "--out", str(tmp_path / "plain"))
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "plain" / "occlusion.csv").read_bytes().count(b"\n") > 3
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"),
+                   "--scenario", str(run / "scenario.toml"), "--occluders", str(POLY), "--out", str(tmp_path / "x"))
+    assert proc.returncode != 0 and "leave out" in proc.stderr and "--occluders" in proc.stderr
 
 
 def test_scenario_occluders_are_read_relative_to_the_scenario_and_checked(tmp_path):
