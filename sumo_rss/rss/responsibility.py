@@ -121,7 +121,8 @@ class ResponsibilityTracker:
     while the episode lasts complied (the intersection response exists so that it does not enter); False: ad_rss's
     reading, braking at b_min after ρ until stopped however far from the area it stops. ``on_close(record,
     joinable, window [s], time [s])``: called with every closed (or joined, or collided) episode record before it is
-    logged; may fill its rule-5 fields and returns violation rows to add (rule 5, :mod:`.evasive_track`)."""
+    logged; may fill its rule-5 fields and returns violation rows to add (rule 5, :mod:`.evasive_track`; rule 4,
+    :mod:`.occlusion_track`, whose rows make their car responsible)."""
 
     def __init__(self, run_id: str = "", join: bool = True, stay_out_complies: bool = True,
                  on_close: Callable[[dict, bool, float, float], list[dict]] | None = None):
@@ -229,7 +230,7 @@ class ResponsibilityTracker:
                 record, parts = held
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
-                self._judge_rule5(record, parts, False, 0.0, time)
+                self._judge_rules_4_5(record, parts, False, 0.0, time)
                 self._log.close(pair_key, record, parts, time, 0.0, joinable=False)
                 records.append(record)
         self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
@@ -478,16 +479,16 @@ class ResponsibilityTracker:
             if first is not None:
                 record = join_records(first, record)
             joinable = collision is None and not end_of_data
-            self._judge_rule5(record, parts, joinable, float(e.window[i]), time)
+            self._judge_rules_4_5(record, parts, joinable, float(e.window[i]), time)
             records.append(record)
             self._log.close(key, record, parts, time, float(e.window[i]), joinable=joinable)
         self._open = e.take(np.flatnonzero(~mask))
         return records
 
 
-    def _judge_rule5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
-        """Rule 5's verdict of a closed (joined, collided) episode (``on_close``): its record's fields, and its
-        evasive-effort row in place of an earlier part's."""
+    def _judge_rules_4_5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
+        """Rules 4 and 5's verdicts of a closed (joined, collided) episode (``on_close``): its record's fields, its
+        evasive-effort row in place of an earlier part's, and rule 4's unreasonable-speed rows."""
         rows = self._on_close(record, joinable, window, time)
         parts.rows[:] = [held for held in parts.rows if held[2]["constraint"] != EVASIVE_CONSTRAINT] + \
             [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
