@@ -265,3 +265,40 @@ def test_a_truck_between_two_cars_hides_them_from_each_other():
     assert seen.violations.query("episode_key == 'front|rear|1'").t_start_s.tolist() == [pytest.approx(1.1)]
     low = audit({"car": 1.5, "truck": 1.5})
     assert blame(low)["front|rear"] == "b" and len(low.occlusion) == 0
+
+
+def test_hidden_and_exposure_steps_of_a_run_are_those_of_the_sight_lines(net):
+    """90 s of intersection_occluded (SUMO traffic, several hidden pairs at once): for every occlusion.csv row, the
+    drivers' sight line recomputed on its own from the snapshots is blocked at t_b exactly where `occluded_at_t_b`
+    says so, open at the exposure step and blocked at the step before it."""
+    from sumo_rss.batch.runner import param_resolver
+    from sumo_rss.scenario import load_scenario
+    from sumo_rss.sim.session import Session
+    from sumo_rss.sim.vtypes import running_heights
+    from sumo_rss.rss.occlusion import vtype_heights
+
+    spec = load_scenario(SCENARIOS / "intersection_occluded.toml").with_overrides(duration_s=90.0)
+    buildings = read_occluders([POLY])
+    snapshots = {}
+    with Session(spec) as session:
+        heights = running_heights()
+        auditor = Auditor(net, param_resolver(spec), occlusion=spec.rss.occlusion, heights=heights,
+                          occluders=buildings)
+        while not session.finished:
+            snapshot = session.step()
+            snapshots[round(snapshot.time, 6)] = snapshot
+            auditor.observe(snapshot, session.new_collisions)
+    rows = auditor.finish().occlusion
+
+    def visible(t: float, a: str, b: str) -> bool:
+        snapshot = snapshots[round(t, 6)]
+        pair = np.array([snapshot.index_of(a)]), np.array([snapshot.index_of(b)])
+        return bool(line_of_sight(snapshot, *pair, vtype_heights(snapshot, heights), 1.6, buildings)[0])
+
+    exposed = rows.dropna(subset=["exposure_a_s"])
+    assert rows.occluded_at_t_b.sum() >= 5 and len(exposed) >= 3
+    for row in rows.itertuples():
+        assert visible(row.t_b_s, row.vehicle_a, row.vehicle_b) == (not row.occluded_at_t_b), row.episode_key
+    for row in exposed.itertuples():
+        assert visible(row.exposure_a_s, row.vehicle_a, row.vehicle_b), row.episode_key
+        assert not visible(row.exposure_a_s - spec.step_s, row.vehicle_a, row.vehicle_b), row.episode_key

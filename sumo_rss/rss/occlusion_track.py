@@ -96,7 +96,7 @@ class OcclusionTracker:
         before = np.where(found, self._seen_from[pos], np.inf) if len(self._keys) else np.full(len(now), np.inf)
         seen_from = np.where(visible, np.where(np.isfinite(before), before, snapshot.time), np.inf)
         # Pairs not tested now keep their state for this step's compliance (their episodes end now).
-        kept = ~_lookup(now, self._keys)[0] if len(now) else np.ones(len(self._keys), dtype=bool)
+        kept = ~np.isin(self._keys, now)
         merged_keys = np.concatenate([self._keys[kept], now])
         merged = np.concatenate([self._seen_from[kept], seen_from])
         order = np.argsort(merged_keys, kind="stable")
@@ -128,7 +128,9 @@ class OcclusionTracker:
             h = self._hidden = merged.take(np.argsort(merged.serial, kind="stable"))
         if not len(h):
             return
-        is_open, at = _lookup(e.serial, h.serial)
+        by_serial = np.argsort(e.serial, kind="stable")  # the open episodes are sorted by pair key
+        is_open, at = _lookup(e.serial[by_serial], h.serial)
+        at = by_serial[at] if len(e) else at
         hid = is_open & hidden_now[at]
         exposed = is_open & ~hid & h.hidden & known[at]
         h.exposure = np.where(exposed, t, h.exposure)
