@@ -302,3 +302,46 @@ def test_hidden_and_exposure_steps_of_a_run_are_those_of_the_sight_lines(net):
     for row in exposed.itertuples():
         assert visible(row.exposure_a_s, row.vehicle_a, row.vehicle_b), row.episode_key
         assert not visible(row.exposure_a_s - spec.step_s, row.vehicle_a, row.vehicle_b), row.episode_key
+
+
+def test_a_car_cutting_in_hidden_behind_a_truck_at_a_high_lateral_speed_is_responsible():
+    """Highway hw0, all at 25 m/s: `keeper` in lane 1 (y = −5.25 m) at 400 m, a 12 x 2.5 m truck 3.4 m high in lane 2
+    (y = −1.75 m) at 420.5 m, `cutter` in lane 2 at 430 m moving right at 1.5 m/s into lane 1 (front bumpers). The
+    cutter is 25.5 m ahead of the keeper, inside d_min 89.2 m: dangerous from 0 s (the keeper owes braking after ρ).
+    In the truck's frame the sight line runs from (398.5, −5.25) to (428.5, −1.66 − 1.5t) (the cutter's driver,
+    turned by its lateral motion) and meets the truck's far end x = 420.5 at y = −5.25 + (3.59 − 1.5t)·22/30: −2.95 m
+    at 0.3 s, inside the box's side y ≥ −3.0, and −3.06 m at 0.4 s, clear: exposure 0.4 s. Over the 4 hidden steps
+    the cutter's mean lateral speed 1.5 m/s exceeds the reasonable 1.0 m/s (its 25 m/s along the lane is within 1.1 x
+    33.33): responsible. The keeper owes braking from exposure + ρ = 1.4 s and keeps its speed: a violation from 1.5 s
+    (with a low truck: from 1.1 s, and the cutter is not responsible)."""
+    net = RoadNetwork.from_file(NETWORKS / "highway" / "highway.net.xml")
+
+    def audit(truck_height: float):
+        auditor = Auditor(net, ParamResolver("ad_rss"), signal_rule=False, occlusion=RULE4,
+                          heights={"car": 1.5, "truck": truck_height})
+        for k in range(21):
+            t = round(0.1 * k, 6)
+            offset = max(-1.5 * t, -3.5)  # the cutter's, from lane 2's centre
+            lane = np.array([1, 2, 2 if offset > -1.75 else 1])
+            lat = np.array([0.0, 0.0, -1.5 if offset > -3.5 else 0.0])
+            x = np.array([400.0, 420.5, 430.0]) + 25.0 * t
+            auditor.observe(WorldSnapshot(
+                time=t, ids=np.array(["keeper", "truck", "cutter"]), x=x, y=np.array([-5.25, -1.75, -1.75 + offset]),
+                heading=np.arctan2(lat, 25.0), speed=np.full(3, 25.0), accel=np.zeros(3), lat_speed=lat,
+                length=np.array([LENGTH, 12.0, LENGTH]), width=np.array([WIDTH, 2.5, WIDTH]),
+                lane_id=np.array([f"hw0_{k}" for k in lane]), edge_id=np.array(["hw0"] * 3), lane_index=lane,
+                lane_pos=x, lat_pos=np.array([0.0, 0.0, offset if offset > -1.75 else offset + 3.5]),
+                vclass=np.full(3, "background"), vtype=np.array(["car", "truck", "car"]), signals=np.zeros(3, int),
+                route_index=np.zeros(3, int), route_edges=(("hw0", "hw1", "hw2"),) * 3))
+        result = auditor.finish()
+        return result, result.violations.query("episode_key == 'cutter|keeper|1'")
+
+    hidden, rows = audit(3.4)
+    assert hidden.episodes.set_index("episode_key").responsible["cutter|keeper|1"] == "both"
+    assert rows[["vehicle_id", "constraint", "bound", "worst_actual", "t_start_s", "t_end_s"]].values.tolist() == [
+        ["cutter", "occluded-unreasonable-speed", 1.0, pytest.approx(1.5), 0.0, pytest.approx(0.3)],
+        ["keeper", "lon-brake-after-response-time", -4.0, 0.0, pytest.approx(1.5), pytest.approx(2.0)]]
+    assert hidden.occlusion.exposure_a_s.tolist() == [pytest.approx(0.4)]
+    seen, rows = audit(1.5)
+    assert seen.episodes.set_index("episode_key").responsible["cutter|keeper|1"] == "b"
+    assert rows[["vehicle_id", "t_start_s"]].values.tolist() == [["keeper", pytest.approx(1.1)]]
