@@ -53,6 +53,7 @@ _AUDIT_EXAMPLES = """examples:
       --scenario results/merge_onramp/3/scenario.toml        # the run of 'sumo-rss run --help': its online audit
   sumo-rss audit my.fcd.xml --net my.net.xml --rss-preset mobileye_human --out audit/
   sumo-rss audit fcd.xml --net my.net.xml --vtypes types.add.xml,my.rou.xml --tls-states tls.xml --hold-standing
+  sumo-rss audit fcd.xml --net my.net.xml --vtypes my.rou.xml --occluders buildings.poly.xml   # RSS rule 4
   (a run of your own: docs/rss.md shows the sumo command that writes fcd.xml and tls.xml)
 """
 _NETS_EXAMPLES = """examples:
@@ -223,6 +224,13 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--evasive-effort", action="store_true",
                        help="RSS rule 5: whether the car that complied could have evaded with a legal manoeuvre "
                             "(episodes.csv evasive_*, rule5_responsible; off by default: docs/rss.md 'Rule 5')")
+    audit.add_argument("--occluders", type=_file_list, metavar="FILE[,FILE...]",
+                       help="RSS rule 4 (occlusion): SUMO additional file(s) whose <poly> elements of a type starting "
+                            "with 'building' block the line of sight; responses are owed from when the cars can "
+                            "see each other (occlusion.csv; docs/rss.md 'Rule 4')")
+    audit.add_argument("--occlusion", action="store_true",
+                       help="RSS rule 4 with tall road users (vType height > 1.6 m) as the only occluders (implied "
+                            "by --occluders)")
     audit.add_argument("--ego", action="append", default=[], metavar="ID",
                        help="vehicle id audited with the ego parameters (repeatable; vType 'ego_type' always is)")
     audit.add_argument("--run-id", help="run id in the CSVs (default: <folder of folder>/<folder> of the FCD)")
@@ -391,12 +399,14 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     from .batch.runner import param_resolver
     from .files import check_output_folder, scratch_folder
     from .rss.auditor import AUDIT_FILES, ParamResolver
+    from .rss.occlusion import OcclusionParams, read_occluders
     from .rss.fcd import AuditProgress, FcdError, audit_fcd, read_vehicle_info
     from .scenario import load_scenario
     from .view.trajectories import TRAJECTORY_FILE, TrajectoryRecorder
 
     check_output_folder(args.out, "--out", (*AUDIT_FILES, TRAJECTORY_FILE))  # before the work, not after a long audit
     for path, what in ((args.fcd, "FCD"), (args.net, "network"), *((p, "vType") for p in args.vtypes or ()),
+                       *((p, "occluder") for p in args.occluders or ()),
                        (args.collisions, "collision"), (args.tls_states, "signal-state")):
         if path is not None and not path.is_file():
             raise FcdError(f"{path}: {what} file not found" + (" (a folder stands there; expected a file)"
@@ -413,19 +423,25 @@ def _cmd_audit(args: argparse.Namespace) -> int:
     vehicles = read_vehicle_info(args.vtypes, args.net)
     if args.scenario is not None:
         if args.rss_preset or args.hold_standing or args.no_signal_rule or args.raw_episodes or \
-                args.junction_brake_min or args.evasive_effort:
+                args.junction_brake_min or args.evasive_effort or args.occluders or args.occlusion:
             raise SumoRssError("--scenario sets the RSS parameters and rules: leave out --rss-preset, --hold-standing, "
-                               "--no-signal-rule, --raw-episodes, --junction-brake-min and --evasive-effort")
+                               "--no-signal-rule, --raw-episodes, --junction-brake-min, --evasive-effort, "
+                               "--occluders and --occlusion")
         spec = load_scenario(args.scenario)
         resolver = param_resolver(spec)
         rules = dict(signal_rule=spec.rss.signal_rule, raw_episodes=spec.rss.raw_episodes,
-                     junction_brake_min=spec.rss.junction_brake_min, evasive=spec.rss.evasive)
+                     junction_brake_min=spec.rss.junction_brake_min, evasive=spec.rss.evasive,
+                     occlusion=spec.rss.occlusion)
     else:
         resolver = ParamResolver(args.rss_preset or "ad_rss", vtype_dynamics=vehicles.dynamics,
                                  hold_standing=args.hold_standing)
         rules = dict(signal_rule=not args.no_signal_rule, raw_episodes=args.raw_episodes,
                      junction_brake_min=args.junction_brake_min,
-                     evasive=EvasiveParams(enabled=True) if args.evasive_effort else None)
+                     evasive=EvasiveParams(enabled=True) if args.evasive_effort else None,
+                     occlusion=OcclusionParams(enabled=True, occluders=tuple(args.occluders))
+                     if args.occluders or args.occlusion else None)
+    occluders = rules["occlusion"].occluders if rules["occlusion"] is not None else ()
+    rules["occluders"] = read_occluders(occluders) if occluders else None
     fcd = args.fcd.resolve()
     run_id = args.run_id or f"{fcd.parent.parent.name}/{fcd.parent.name}"
     # What 'sumo-rss view' replays (every vehicle, every episode's steps) goes to disk as it is recorded, so that
@@ -455,7 +471,9 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         f" (the states of the network's {len(topology.signals)} signals from its own programs: no --tls-states)"
     print(f"{'interrupted: ' if stop.requested else ''}{len(result.episodes)} episodes, {len(result.violations)} "
           f"violations, {len(result.collisions)} collisions{signals} -> {args.out} ({done[0].steps} steps, "
-          f"{done[0].pair_steps} pair-steps, audited in {time.perf_counter() - begun:.1f} s)")
+          f"{done[0].pair_steps} pair-steps, audited in {time.perf_counter() - begun:.1f} s)"
+          + (f"; rule 4: {len(result.occlusion)} episodes hidden at some step, {result.occluded_pair_steps} "
+             "hidden pair-steps" if result.occlusion is not None else ""))
     return EXIT_INTERRUPTED if stop.requested else 0
 
 

@@ -16,6 +16,7 @@ from typing import Any
 from .errors import ScenarioError
 from .planner.behavior.cost_weights import CostWeights
 from .road.topology import NetTopology, read_topology
+from .rss.occlusion import OcclusionParams
 from .rss.params import PRESETS, EvasiveParams
 from .scenario_routes import check_depart_speed, check_route_permits, read_depart_lane, read_route
 from .scenario_rss import RssSpec, read_rss
@@ -207,6 +208,11 @@ class ScenarioSpec:
         if self.rss.evasive != EvasiveParams():  # left out at the defaults: the scenario's hash stays what it was
             data["rss"].update(evasive_effort=self.rss.evasive.enabled, evasive_horizon_s=self.rss.evasive.horizon_s,
                                evasive_margin_m=self.rss.evasive.margin_m)
+        if self.rss.occlusion != OcclusionParams():  # the same: left out at the defaults
+            o = self.rss.occlusion
+            data["rss"].update(occlusion=o.enabled, occluders=_plain(o.occluders), occluder_min_height_m=o.min_height_m,
+                               occluded_speed_factor=o.speed_factor, occluded_yield_speed_ms=o.yield_speed_ms,
+                               occluded_yield_zone_m=o.yield_zone_m, occluded_lat_speed_ms=o.lat_speed_ms)
         # SUMO files of the user's own, as absolute paths (left out where there are none: the hash of a scenario
         # without them is what it was before they could be given)
         if self.demand.route_files:
@@ -280,7 +286,7 @@ def parse_scenario(data: dict[str, Any], path: Path) -> ScenarioSpec:
         if clash is not None:
             raise ScenarioError(path, "ego.id", f"expected an id that is not a vehicle of flow {clash!r} "
                                                 f"(named {clash}.0, {clash}.1, ...)", ego.id)
-    rss = read_rss(top.table("rss"), demand, ego)
+    rss = read_rss(top.table("rss"), demand, ego, path)
     outputs_t = top.table("outputs")
     outputs = OutputsSpec(fcd=outputs_t.boolean("fcd", False), collisions_xml=outputs_t.boolean("collisions_xml", True))
     outputs_t.finish()

@@ -3,8 +3,10 @@ hold_standing and the episode and junction-response rules, validated so that eve
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .rss.occlusion import OcclusionParams
 from .rss.params import PARAM_NAMES, PRESETS, ROLES, EvasiveParams, evasive_params, resolve_params
 from .validation import TableReader
 
@@ -22,9 +24,10 @@ class RssSpec:
     raw_episodes: bool = False  # an episode re-opening within ρ of its end is a new one (default: it continues)
     junction_brake_min: bool = False  # ad_rss's reading: a yielding car brakes at b_min even if it stops before
     evasive: EvasiveParams = field(default_factory=EvasiveParams)  # rule 5: evasive_effort, _horizon_s, _margin_m
+    occlusion: OcclusionParams = field(default_factory=OcclusionParams)  # rule 4: occlusion, occluders, occlu*_
 
 
-def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec:
+def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None, scenario_file: Path) -> RssSpec:
     preset = t.string("preset", "ad_rss", choices=PRESETS)
     signal_rule = t.boolean("signal_rule", True)
     hold_standing = t.boolean("hold_standing", False)
@@ -33,6 +36,7 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec
                                               min_exclusive=True),
                              t.number("evasive_margin_m", EvasiveParams.margin_m, min=0.0, max=100.0),
                              t.boolean("evasive_effort", False))
+    occlusion = _read_occlusion(t, scenario_file)
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}
     vtype_ids = {v.id for v in demand.vtypes}
     by_vtype = {}
@@ -42,7 +46,8 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None) -> RssSpec
                           name)
         by_vtype[name] = _read_param_overrides(r)
     t.finish()
-    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing, raw_episodes, junction_brake_min, evasive)
+    spec = RssSpec(preset, signal_rule, roles, by_vtype, hold_standing, raw_episodes, junction_brake_min, evasive,
+                   occlusion)
     problem = rss_inconsistency(spec, demand, ego)  # inconsistent overrides fail here, at load time
     if problem is not None:
         raise t.error(*problem)
@@ -68,3 +73,20 @@ def _read_param_overrides(t: TableReader) -> dict[str, float]:
     out = {name: t.number(name) for name in PARAM_NAMES if t.has(name)}
     t.finish()
     return out
+
+
+def _read_occlusion(t: TableReader, scenario_file: Path) -> OcclusionParams:
+    """Rule 4's keys (docs/rss.md "Rule 4"): ``occlusion`` (on; also implied by ``occluders``), ``occluders`` (SUMO
+    additional files with <poly> occluders, relative to the scenario file) and the parameters of rss.md §9."""
+    from .scenario_sumo import read_input_files
+
+    defaults = OcclusionParams()
+    occluders = read_input_files(t, "occluders", scenario_file)
+    return OcclusionParams(
+        enabled=t.boolean("occlusion", bool(occluders)) or bool(occluders),
+        min_height_m=t.number("occluder_min_height_m", defaults.min_height_m, min=0.0, max=20.0),
+        speed_factor=t.number("occluded_speed_factor", defaults.speed_factor, min=1.0, max=10.0),
+        yield_speed_ms=t.number("occluded_yield_speed_ms", defaults.yield_speed_ms, min=0.0, max=100.0),
+        yield_zone_m=t.number("occluded_yield_zone_m", defaults.yield_zone_m, min=0.0, max=1000.0),
+        lat_speed_ms=t.number("occluded_lat_speed_ms", defaults.lat_speed_ms, min=0.0, max=10.0),
+        occluders=occluders)

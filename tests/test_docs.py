@@ -28,14 +28,16 @@ def test_every_glossary_code_name_exists():
 def test_documented_columns_are_the_written_columns():
     for heading, columns in (("## `episodes.csv`", records.EPISODE_COLUMNS),
                              ("## `violations.csv`", records.VIOLATION_COLUMNS),
-                             ("## `collisions.csv`", auditor.COLLISION_COLUMNS)):
+                             ("## `collisions.csv`", auditor.COLLISION_COLUMNS),
+                             ("## `occlusion.csv`", records.OCCLUSION_COLUMNS)):
         documented = [n for row in _table(heading) for n in re.findall(r"`([^`]+)`", row[0])]
         assert documented == columns, heading
 
 
 def test_documented_constraints_and_situations_exist():
-    for constraint in responsibility.Constraint:
-        assert f"`{constraint.value}`" in OUTPUTS
+    for constraint in (*(c.value for c in responsibility.Constraint), records.EVASIVE_CONSTRAINT,
+                       records.OCCLUSION_CONSTRAINT):
+        assert f"`{constraint}`" in OUTPUTS
     for kind in situations.SituationType:
         assert f"`{kind.value}`" in OUTPUTS
 
@@ -104,10 +106,10 @@ def test_the_documented_python_api_exists_with_the_documented_parameters():
     for name, parameters in (("run_one", "spec out_dir variant fcd on_step controller stop"),
                              ("run_batch", "tasks out_dir executor progress"),
                              ("Auditor", "network params run_id trace_class signal_rule raw_episodes junction_brake_min "
-                                         "record_states spool evasive"),
+                                         "record_states spool evasive occlusion heights occluders"),
                              ("audit_fcd", "fcd network params vehicles collisions tls_states ego_ids run_id "
                                            "signal_rule raw_episodes junction_brake_min trace_class on_progress stop "
-                                           "record_states spool on_snapshot evasive"),
+                                           "record_states spool on_snapshot evasive occlusion occluders"),
                              ("write_view", "run_dir out net every geometry"),
                              ("EpsilonPlanner", "network params config")):
         assert list(inspect.signature(resolved[name]).parameters) == parameters.split(), name

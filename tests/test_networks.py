@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 import sumolib
 
@@ -15,7 +16,8 @@ from sumo_rss.road.build import build_network, network_dirs, without_generator_h
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.sumo_home import sumo_tool
 
-NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_tls_peds", "intersection_priority"]
+NAMES = ["highway", "highway_exit", "merge", "intersection_tls", "intersection_tls_peds", "intersection_priority",
+         "intersection_occluded"]
 
 
 def _net(name: str) -> sumolib.net.Net:
@@ -117,6 +119,29 @@ def test_priority_intersection_minor_approaches_must_stop():
         assert (states == {"s"}) == must_stop, (edge_id, states)
 
 
+def test_occluded_intersection_has_four_corner_buildings_clear_of_every_lane():
+    """The minor approaches yield without stopping; the four buildings (rule 4's occluders) stand off every lane,
+    internal lanes included (no lane point within 0.5 m of one), and one sits in each quadrant."""
+    from sumo_rss.rss.occlusion import read_occluders
+
+    net = _net("intersection_occluded")
+    assert net.getNode("J").getType() == "priority"
+    for edge_id, yields in (("N_in", True), ("S_in", True), ("W_in", False), ("E_in", False)):
+        states = {c.getState() for c in net.getEdge(edge_id).getLane(0).getOutgoing()}
+        assert ("M" not in states) == yields, (edge_id, states)
+    buildings = read_occluders([NETWORKS / "intersection_occluded" / "intersection_occluded.poly.xml"])
+    assert buildings.count == 4
+    quadrants = {(np.sign(x), np.sign(y)) for x, y in zip(buildings.x0, buildings.y0)}
+    assert quadrants == {(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)}
+    low = np.minimum(np.abs(buildings.x0), np.abs(buildings.y0)).min()
+    for edge in net.getEdges(withInternal=True):
+        for lane in edge.getLanes():
+            points = np.array(lane.getShape())
+            inside = (np.abs(points[:, 0]) > low - 0.5 - lane.getWidth() / 2) & \
+                (np.abs(points[:, 1]) > low - 0.5 - lane.getWidth() / 2)
+            assert not inside.any(), lane.getID()
+
+
 def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_path):
     root = tmp_path / "nets"
     shutil.copytree(NETWORKS, root)
@@ -127,8 +152,8 @@ def test_nets_check_reports_every_network_and_netconvert_errors_in_one_line(tmp_
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 2
     assert proc.stdout.splitlines() == ["highway: STALE (run: sumo-rss nets build)", "highway_exit: up to date",
-                                        "intersection_priority: up to date", "intersection_tls: up to date",
-                                        "intersection_tls_peds: up to date"]
+                                        "intersection_occluded: up to date", "intersection_priority: up to date",
+                                        "intersection_tls: up to date", "intersection_tls_peds: up to date"]
     assert proc.stderr.splitlines() == [f"sumo-rss: error: netconvert failed for {root / 'merge' / 'merge.netccfg'}: "
                                         "Error: Could not open connections-file 'merge.con.xml'. Quitting (on error)."]
 
@@ -145,7 +170,8 @@ def test_nets_check_names_a_misspelt_source_attribute_and_a_missing_net(tmp_path
     proc = subprocess.run([sys.executable, "-m", "sumo_rss", "nets", "check", "--root", str(root)],
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 2
-    assert proc.stdout.splitlines() == ["highway_exit: up to date", "intersection_priority: up to date",
+    assert proc.stdout.splitlines() == ["highway_exit: up to date", "intersection_occluded: up to date",
+                                        "intersection_priority: up to date",
                                         "intersection_tls: MISSING intersection_tls.net.xml (run: sumo-rss nets build)",
                                         "intersection_tls_peds: up to date", "merge: up to date"]
     assert "Error: attribute 'numLane' is not declared for element 'edge' In file 'highway.edg.xml'" in proc.stderr

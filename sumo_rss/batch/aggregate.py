@@ -15,7 +15,7 @@ SUMMARY_COLUMNS = ["run_id", "scenario", "variant", "seed", "status", "sim_time_
                    "collisions", "teleports", "ego_responsible_episodes", "ego_mean_speed_ms", "error"]
 COUNT_COLUMNS = ("seed", "steps", "vehicles_inserted", "peak_vehicles", "episodes", "violations", "collisions",
                  "teleports", "ego_responsible_episodes")
-CONCATENATED = ("episodes", "violations", "collisions", "pair_states")
+CONCATENATED = ("episodes", "violations", "collisions", "pair_states", "occlusion")  # occlusion: rule 4 runs only
 BATCH_FILES = ("batch_summary.csv", *(f"{name}.csv" for name in CONCATENATED))  # a batch writes into its folder
 # Names in a batch folder that are the batch's own (`sumo-rss report` adds report.html and report/): no scenario's
 # runs folder may have one.

@@ -29,6 +29,7 @@ from ..errors import ScenarioError, SumoRssError
 from ..files import atomic_path, make_folder, output_error, write_json, write_text
 from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, ParamResolver
+from ..rss.occlusion import read_occluders
 from ..rss.params import MODEL_VERSION
 from ..rss.responsibility import RESPONSIBLE_VALUES
 from ..scenario import ScenarioSpec
@@ -143,6 +144,7 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         custom = f"{type(controller).__module__}.{type(controller).__qualname__}"
         variant = variant or variant_name({"controller": "custom"})
     from ..sim.session import Session  # libsumo is only imported where a simulation runs
+    from ..sim.vtypes import running_heights
 
     task = Task(spec, variant)
     final = run_directory(out_dir, task)
@@ -168,7 +170,9 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         resolver = param_resolver(spec)
         auditor = Auditor(network, resolver, task.run_id, trace_class=EGO_CLASS, signal_rule=spec.rss.signal_rule,
                           raw_episodes=spec.rss.raw_episodes, junction_brake_min=spec.rss.junction_brake_min,
-                          record_states=True, evasive=spec.rss.evasive)
+                          record_states=True, evasive=spec.rss.evasive, occlusion=spec.rss.occlusion,
+                          occluders=read_occluders(spec.rss.occlusion.occluders) if spec.rss.occlusion.occluders
+                          else None)
         every_vehicle = (spec.outputs.fcd if fcd is None else fcd) or spec.ego is None
         recorder = TrajectoryRecorder(spec.net_file, near_ego_m=None if every_vehicle else NEAR_EGO_M)
         driver = controller if controller is not None else _ego_driver(spec, network, resolver)
@@ -176,6 +180,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
         ego_rows = []
         interrupted = False
         with Session(spec, work, fcd=fcd) as session:
+            if spec.rss.occlusion.enabled:
+                auditor.set_heights(running_heights())
             while not session.finished:
                 snapshot = session.step()
                 auditor.observe(snapshot, session.new_collisions)
@@ -225,7 +231,10 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
             ego_controller="custom" if controller is not None else spec.ego.controller if spec.ego else None,
             collision_events=[asdict(c) for c in session.collisions], versions=manifest["versions"],
             planner=planner)
-        write_json(work / SUMMARY_FILE, asdict(summary))
+        summary_data = asdict(summary)
+        if audit.occluded_pair_steps:  # rule 4: only where cars could not see each other (summaries stay as they were)
+            summary_data["occluded_pair_steps"] = audit.occluded_pair_steps
+        write_json(work / SUMMARY_FILE, summary_data)
         manifest["files"] = folder_files(work, (MANIFEST_FILE, WRITER_LOCK))  # last: what a resume checks
         write_json(work / MANIFEST_FILE, manifest)
         _replace_dir(work, final)

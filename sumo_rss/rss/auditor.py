@@ -19,6 +19,8 @@ from ..road.routes import RouteTable
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot
 from .episode_states import STATE_FILE, EpisodeStates, EpisodeStateTrace
 from .evasive_track import Rule5Tracker
+from .occlusion import OccluderEdges, OcclusionParams
+from .occlusion_track import OcclusionTracker
 from .params import BICYCLE, PERSON, EvasiveParams, RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
@@ -98,7 +100,9 @@ class ParamResolver:
 
 PARAMS_FILE = "rss_params.json"  # the resolved RSS parameters next to the CSVs they judged
 # AuditResult's files
-AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", STATE_FILE, PARAMS_FILE)
+OCCLUSION_FILE = "occlusion.csv"  # rule 4: the episodes whose cars could not see each other at some step
+AUDIT_FILES = ("episodes.csv", "violations.csv", "collisions.csv", "pair_states.csv", STATE_FILE, PARAMS_FILE,
+               OCCLUSION_FILE)
 
 
 @dataclass
@@ -109,11 +113,14 @@ class AuditResult:
     params: dict[str, dict[str, float]]
     pair_states: pd.DataFrame | None = None  # per step of the traced episodes (``Auditor(trace_class=...)``)
     episode_states: EpisodeStates | None = None  # per step of every episode (``Auditor(record_states=True)``)
+    occlusion: pd.DataFrame | None = None  # rule 4's occlusion.csv (``Auditor(occlusion=...)`` enabled)
+    occluded_pair_steps: int = 0  # rule 4: dangerous pair-steps whose cars could not see each other
 
     def file_names(self) -> tuple[str, ...]:
         """The files :meth:`to_csv` writes."""
         return tuple(name for name in AUDIT_FILES if (name != "pair_states.csv" or self.pair_states is not None)
-                     and (name != STATE_FILE or self.episode_states is not None))
+                     and (name != STATE_FILE or self.episode_states is not None)
+                     and (name != OCCLUSION_FILE or self.occlusion is not None))
 
     def to_csv(self, directory: str | Path, also: Mapping[str, Callable[[Path], None]] | None = None) -> None:
         """Write episodes.csv, violations.csv, collisions.csv (and pair_states.csv when traced, episode_states.npz
@@ -124,7 +131,7 @@ class AuditResult:
         made = not directory.exists()
         make_folder(directory)
         frames = {"episodes.csv": self.episodes, "violations.csv": self.violations, "collisions.csv": self.collisions,
-                  "pair_states.csv": self.pair_states}
+                  "pair_states.csv": self.pair_states, OCCLUSION_FILE: self.occlusion}
         writers = {directory / name: csv_writer(frames[name]) for name in self.file_names() if name in frames}
         if self.episode_states is not None:
             writers[directory / STATE_FILE] = self.episode_states.write
@@ -156,7 +163,8 @@ class Auditor:
     def __init__(self, network: RoadNetwork, params: ParamResolver | None = None, run_id: str = "",
                  trace_class: str | None = None, signal_rule: bool = True, raw_episodes: bool = False,
                  junction_brake_min: bool = False, record_states: bool = False, spool: Path | None = None,
-                 evasive: EvasiveParams | None = None):
+                 evasive: EvasiveParams | None = None, occlusion: OcclusionParams | None = None,
+                 heights: Mapping[str, float] | None = None, occluders: OccluderEdges | None = None):
         """``trace_class``: record gaps and safe distances at every step of each episode involving a car of
         this class (e.g. 'ego') in ``AuditResult.pair_states``. ``signal_rule``: report red-light entries and
         avoidable yellow-light entries as violations (docs/rss.md). ``raw_episodes``: an episode that re-opens
@@ -166,7 +174,9 @@ class Auditor:
         enters the area while the episode lasts complied). ``record_states``: record every episode's steps, with
         the owed responses' bounds, in ``AuditResult.episode_states`` (for the viewer); ``spool``: a folder they
         go to as they come (:mod:`sumo_rss.spool`) instead of memory, which must stay until the result is
-        written. ``evasive``: rule 5's settings (docs/rss.md; off unless ``enabled``)."""
+        written. ``evasive``: rule 5's settings (docs/rss.md; off unless ``enabled``). ``occlusion``: rule 4's
+        settings (off unless ``enabled``), with the vTypes' ``heights`` [m] (vType → height; see
+        :meth:`set_heights`) and the static ``occluders`` (:func:`~sumo_rss.rss.occlusion.read_occluders`)."""
         self.network = network
         self.junctions = JunctionModel.from_file(network.path, network)
         self._area_ids = np.array(sorted(c.id for c in self.junctions.conflicts), dtype=str)  # area number: index
@@ -180,8 +190,9 @@ class Auditor:
         self.run_id = run_id
         self.pair_steps = 0
         self._rule5 = Rule5Tracker(network, evasive)
+        self._occlusion = OcclusionTracker(network, occlusion, heights, occluders)
         self._tracker = ResponsibilityTracker(run_id, join=not raw_episodes, stay_out_complies=not junction_brake_min,
-                                              on_close=self._rule5.close)
+                                              on_close=self._close_episode)
         self._uid: dict[str, int] = {}
         self._routes = RouteTable(network)
         self._prev_ids: set[str] = set()
@@ -227,16 +238,18 @@ class Auditor:
         else:
             situations, keys = road, road_keys
         new_vehicle = np.array([v not in self._prev_ids for v in ids], dtype=bool)
+        vehicle_pairs, vehicle_keys = situations, keys
+        if walking is not None:  # rows of snapshot only: rules 4 and 5 are asked of vehicles, and callers read them
+            cars = (situations.a < users.vehicles) & (situations.b < users.vehicles)
+            vehicle_pairs, vehicle_keys = situations.take(cars), keys[cars]
+        seen_from = self._occlusion.sight(snapshot, vehicle_pairs, vehicle_keys)
         self._tracker.step(StepInput(
             time=snapshot.time, keys=keys, situations=situations, ids=users.ids, uids=uid,
             vclass=users.vclass, accel=users.accel, speed=users.speed,
             accel_tolerance=EPS_ACCEL + snapshot.accel_resolution, params=users.params,
             new_vehicle=new_vehicle, areas=areas,
-            area_number=area_number))
-        vehicle_pairs, vehicle_keys = situations, keys
-        if walking is not None:  # rows of snapshot only: rule 5 is asked of vehicles, and callers read the snapshot's
-            cars = (situations.a < users.vehicles) & (situations.b < users.vehicles)
-            vehicle_pairs, vehicle_keys = situations.take(cars), keys[cars]
+            area_number=area_number, seen_from=seen_from))
+        self._occlusion.step(snapshot, frame, vehicle_pairs, vehicle_keys, self._tracker)
         self._rule5.step(snapshot, uid[:users.vehicles], frame, vehicle_pairs, vehicle_keys, self._tracker, params,
                          EPS_ACCEL + snapshot.accel_resolution)
         if self._states is not None:
@@ -247,6 +260,15 @@ class Auditor:
         self._prev_ids = set(ids)
         self.pair_steps += len(situations)
         return vehicle_pairs
+
+    def set_heights(self, heights: Mapping[str, float]) -> None:
+        """The vTypes' heights [m] (vType → height) for rule 4, where they are known only once SUMO runs."""
+        self._occlusion.heights = dict(heights)
+
+    def _close_episode(self, record: dict, joinable: bool, window: float, time: float) -> list[dict]:
+        """Rule 4's and rule 5's verdicts of a closed episode (the responsibility tracker's ``on_close``): rule 4
+        first, as its unreasonable-speed violations make a car responsible, which rule 5 reads."""
+        return self._occlusion.close(record) + self._rule5.close(record, joinable, window, time)
 
     def owed_by(self, vehicle_id: str) -> OwedResponses:
         """The proper responses ``vehicle_id`` owes right now (open episodes after the last observed step)."""
@@ -282,7 +304,9 @@ class Auditor:
         keys = self._tracker.serial_keys
         pair_states = self._states.pair_states(self.run_id, keys) if self.trace_class is not None else None
         states = self._states.episode_states(keys) if self.record_states else None
-        return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states, states)
+        occlusion = self._occlusion.frame() if self._occlusion.enabled else None
+        return AuditResult(episodes, violations, collisions, self.params.resolved(), pair_states, states, occlusion,
+                           self._occlusion.pair_steps)
 
 
 def _concat_rows(*frames: pd.DataFrame) -> pd.DataFrame:

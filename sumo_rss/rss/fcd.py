@@ -28,6 +28,7 @@ from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
 from .params import EvasiveParams
+from .occlusion import OccluderEdges, OcclusionParams
 from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
 from .fcd_persons import person_snapshot
@@ -60,6 +61,7 @@ class VehicleInfo:
     routes: dict[str, tuple[str, ...]] = field(default_factory=dict)  # vehicle or flow id → edges
     types: dict[str, str] = field(default_factory=dict)  # vehicle or flow id → vType (for an FCD without 'type')
     bicycles: frozenset[str] = frozenset({"DEFAULT_BIKETYPE"})  # vTypes of SUMO vClass bicycle
+    heights: dict[str, float] = field(default_factory=dict)  # vType → height [m] (rule 4)
 
     def route_of(self, vehicle_id: str) -> tuple[str, ...] | None:
         """The route of a vehicle, or of the flow that made it (``flow.k``); None if unknown."""
@@ -109,7 +111,8 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
         raise FcdError(str(exc)) from exc
     info = VehicleInfo({t: (p.length, p.width) for t, p in types.items()},
                        {t: (p.tau, p.decel) for t, p in types.items()},
-                       bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"))
+                       bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"),
+                       heights={t: p.height for t, p in types.items()})
     named_routes: dict[str, tuple[str, ...]] = {}
     for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
         if elem.tag == "route" and elem.get("id"):
@@ -463,14 +466,16 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
               trace_class: str | None = None, on_progress: Callable[[AuditProgress], None] | None = None,
               stop: Callable[[], bool] | None = None, record_states: bool = False, spool: Path | None = None,
               on_snapshot: Callable[[WorldSnapshot], None] | None = None,
-              evasive: EvasiveParams | None = None) -> AuditResult:
+              evasive: EvasiveParams | None = None, occlusion: OcclusionParams | None = None,
+              occluders: OccluderEdges | None = None) -> AuditResult:
     """Audit a whole FCD file. Collisions come from SUMO's collision-output file when given, else from
     overlapping bounding boxes of the evaluated pairs (:func:`_in_contact`). Signal states come from SUMO's
     signal-state file (``SaveTLSStates``) when given, else from the network's fixed-time programs. ``vehicles``
     defaults to SUMO's built-in vTypes (:func:`read_vehicle_info`). ``on_progress(AuditProgress)`` is called after
     every time step. ``stop()`` is asked after every time step: True ends the audit there, as if the file ended
     there (with a warning that names the step). ``signal_rule``, ``raw_episodes``, ``junction_brake_min``,
-    ``trace_class``, ``record_states``, ``spool``, ``evasive``: as for :class:`Auditor`. ``on_snapshot(snapshot)``:
+    ``trace_class``, ``record_states``, ``spool``, ``evasive``, ``occlusion``, ``occluders``: as for :class:`Auditor`
+    (the vTypes' heights from ``vehicles``). ``on_snapshot(snapshot)``:
     after every audited time step (e.g. a viewer's recorder)."""
     reports = _CollisionReports(read_collisions(collisions)) if collisions is not None else None
     if vehicles is None:
@@ -484,7 +489,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     contacts = ContactTracker()
     auditor = Auditor(network, params, run_id, trace_class=trace_class, signal_rule=signal_rule,
                       raw_episodes=raw_episodes, junction_brake_min=junction_brake_min, record_states=record_states,
-                      spool=spool, evasive=evasive)
+                      spool=spool, evasive=evasive, occlusion=occlusion, heights=vehicles.heights,
+                      occluders=occluders)
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0

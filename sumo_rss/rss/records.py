@@ -16,6 +16,11 @@ EPISODE_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "class_a",
                    *RULE5_COLUMNS]
 RULE5_UNCHECKED = {"evasive_checked": False, "evasive_last_s": float("nan"), "rule5_responsible": ""}
 EVASIVE_CONSTRAINT = "evasive-effort"
+# Rule 4 (rss.md §9, docs/rss.md): occlusion.csv's columns (one row per episode whose cars could not see each other
+# at some step; episodes.csv keeps its columns) and the constraint of a hidden car's unreasonable speed.
+OCCLUSION_COLUMNS = ["run_id", "episode_key", "vehicle_a", "vehicle_b", "episode_index", "situation", "t_b_s",
+                     "exposure_a_s", "exposure_b_s", "occluded_at_t_b"]
+OCCLUSION_CONSTRAINT = "occluded-unreasonable-speed"
 VIOLATION_COLUMNS = ["run_id", "episode_key", "vehicle_id", "vehicle_class", "role", "constraint", "bound",
                      "worst_actual", "excess", "t_start_s", "t_end_s"]
 

@@ -18,7 +18,7 @@ from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
-from .records import EVASIVE_CONSTRAINT, RULE5_UNCHECKED
+from .records import EVASIVE_CONSTRAINT, OCCLUSION_CONSTRAINT, RULE5_UNCHECKED
 from ..road_users import PERSON_CLASS
 from .intersection import KIND_SIGNAL
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
@@ -47,6 +47,9 @@ class StepInput:
     areas: AreaRules | None = None
     area_number: np.ndarray | None = None
     accel_tolerance: float = EPS_ACCEL  # [m/s²] on the acceleration bounds (wider for accelerations measured coarsely)
+    # Rule 4 (:mod:`.occlusion_track`): sorted pair keys and the start [s] of their cars' current run of seeing each
+    # other (+inf while hidden); a response is owed from max(t_b, that start) + ρ. None: every car sees every car.
+    seen_from: tuple[np.ndarray, np.ndarray] | None = None
 
 
 RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
@@ -119,7 +122,8 @@ class ResponsibilityTracker:
     while the episode lasts complied (the intersection response exists so that it does not enter); False: ad_rss's
     reading, braking at b_min after ρ until stopped however far from the area it stops. ``on_close(record,
     joinable, window [s], time [s])``: called with every closed (or joined, or collided) episode record before it is
-    logged; may fill its rule-5 fields and returns violation rows to add (rule 5, :mod:`.evasive_track`)."""
+    logged; may fill its rule-5 fields and returns violation rows to add (rule 5, :mod:`.evasive_track`; rule 4,
+    :mod:`.occlusion_track`, whose rows make their car responsible)."""
 
     def __init__(self, run_id: str = "", join: bool = True, stay_out_complies: bool = True,
                  on_close: Callable[[dict, bool, float, float], list[dict]] | None = None):
@@ -227,7 +231,7 @@ class ResponsibilityTracker:
                 record, parts = held
                 record.update(t_end_s=time, duration_s=time - record["t_b_s"], collision=True, collider=collider,
                               victim=victim, ended_by="collision")
-                self._judge_rule5(record, parts, False, 0.0, time)
+                self._judge_rules_4_5(record, parts, False, 0.0, time)
                 self._log.close(pair_key, record, parts, time, 0.0, joinable=False)
                 records.append(record)
         self._collided = np.union1d(self._collided, np.asarray(pair_keys, dtype=np.int64)).astype(np.int64)
@@ -325,7 +329,11 @@ class ResponsibilityTracker:
             e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin,
                                                               sit.lat_gap[rows] - sit.lat_d_min[rows]), e.min_lat_margin)
         e.t_last = np.where(candidate, t, e.t_last)
-        judged = t > e.t_b + TIME_EPS
+        start = e.t_b  # the response starts when the cars can see each other (rule 4)
+        if step.seen_from is not None and len(step.seen_from[0]):
+            seen, at = _lookup(step.seen_from[0], e.keys)
+            start = np.where(seen, np.maximum(e.t_b, step.seen_from[1][at]), e.t_b)
+        judged = t > start + TIME_EPS
         by_uid = np.argsort(step.uids)
         own = by_uid[np.searchsorted(step.uids[by_uid], e.uids)]  # [n, 2] snapshot rows of the cars
         pair = candidate[:, None]
@@ -343,7 +351,7 @@ class ResponsibilityTracker:
             e.stood_short |= pair & progress["stood_short"]
             e.stopping = np.where(pair, progress["stopping"], e.stopping)
         rho = p.response_time[cars]
-        tau = (t - e.t_b)[:, None]
+        tau = (t - np.minimum(start, t))[:, None]  # 0 while hidden (nothing is judged then)
         in_response = tau <= rho + TIME_EPS
         # The step that ends ρ inside it (ρ not a multiple of the step): its mean acceleration may be a_acc for
         # the part before t_b + ρ and must be −b after it, so its bound is the time-weighted mix of the two.
@@ -473,19 +481,22 @@ class ResponsibilityTracker:
             if first is not None:
                 record = join_records(first, record)
             joinable = collision is None and not end_of_data
-            self._judge_rule5(record, parts, joinable, float(e.window[i]), time)
+            self._judge_rules_4_5(record, parts, joinable, float(e.window[i]), time)
             records.append(record)
             self._log.close(key, record, parts, time, float(e.window[i]), joinable=joinable)
         self._open = e.take(np.flatnonzero(~mask))
         return records
 
 
-    def _judge_rule5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
-        """Rule 5's verdict of a closed (joined, collided) episode (``on_close``): its record's fields, and its
-        evasive-effort row in place of an earlier part's."""
+    def _judge_rules_4_5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
+        """Rules 4 and 5's verdicts of a closed (joined, collided) episode (``on_close``): its record's fields, its
+        evasive-effort row in place of an earlier part's, and rule 4's unreasonable-speed rows."""
         rows = self._on_close(record, joinable, window, time)
         parts.rows[:] = [held for held in parts.rows if held[2]["constraint"] != EVASIVE_CONSTRAINT] + \
             [(0 if row["vehicle_id"] == record["vehicle_a"] else 1, False, row) for row in rows]
+        for row in rows:  # rule 4's unreasonable speed makes a car responsible, also for a later part
+            if row["constraint"] == OCCLUSION_CONSTRAINT:
+                parts.fixed[0 if row["vehicle_id"] == record["vehicle_a"] else 1] = True
 
 
 def _instant_brake(step: StepInput, cars: np.ndarray) -> np.ndarray:

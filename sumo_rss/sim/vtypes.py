@@ -34,6 +34,7 @@ class VTypeParameters:
     width: float  # [m]
     tau: float  # [s] desired time headway
     decel: float  # [m/s²] comfortable deceleration
+    height: float  # [m] (rule 4: taller road users block the line of sight)
     vclass: str = "passenger"  # SUMO's vClass ('bicycle' gets its own RSS parameters)
 
 
@@ -65,7 +66,7 @@ def sumo_vtypes(net_file: Path, documents: Sequence[ET.Element] = (), source: st
         try:
             vt = libsumo.vehicletype
             types = {t: VTypeParameters(vt.getLength(t), vt.getWidth(t), vt.getTau(t), vt.getDecel(t),
-                                        vt.getVehicleClass(t))
+                                        vt.getHeight(t), vt.getVehicleClass(t))
                      for t in vt.getIDList()}
         finally:
             libsumo.close()
@@ -91,3 +92,10 @@ def _vtype_elements(elem: ET.Element) -> list[ET.Element]:
     for child in elem:
         found.extend([child] if child.tag in ("vType", "vTypeDistribution") else _vtype_elements(child))
     return found
+
+
+def running_heights() -> dict[str, float]:
+    """[m] the height of every vType of the simulation running in this process (SUMO's vClass default where a vType
+    sets none): rule 4's tall road users."""
+    vt = libsumo.vehicletype
+    return {t: vt.getHeight(t) for t in vt.getIDList()}
