@@ -17,7 +17,8 @@ from .evasive import (N_CANDIDATES, OPPOSITE_CODE, Candidates, PairRows, candida
                       dangerous_at_end, grid, on_drivable_lanes, owed_to_others)
 from .params import EvasiveParams, RssParamArrays
 from .records import EVASIVE_CONSTRAINT
-from .responsibility import ResponsibilityTracker, _lookup
+from .responsibility import ResponsibilityTracker
+from .sorted_keys import find_sorted
 from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES, PairSituations, VehicleFrame
 
 TIME_EPS = 1e-9  # [s]
@@ -133,13 +134,13 @@ class Rule5Tracker:
         t = snapshot.time
         lat_accel = np.zeros(len(snapshot))
         if self._prev_time is not None:
-            seen, pos = _lookup(self._prev_uid, uids)
+            seen, pos = find_sorted(self._prev_uid, uids)
             lat_accel = np.where(seen, (snapshot.lat_speed - self._prev_lat[pos]) / (t - self._prev_time), 0.0)
             self._match(t, t - self._prev_time, snapshot, uids, lat_accel, tolerance)
         self._finish(self._windows.t_end <= t + TIME_EPS)
         open_serials = np.sort(tracker.open.serial)
         self._asked = self._asked.take(np.flatnonzero((self._asked.expiry >= t - TIME_EPS) |
-                                                      _lookup(open_serials, self._asked.serial)[0]))
+                                                      find_sorted(open_serials, self._asked.serial)[0]))
         self._ask(t, snapshot, uids, frame, situations, keys, tracker, params, tolerance)
         order = np.argsort(uids)
         self._prev_uid, self._prev_lat, self._prev_time = uids[order], snapshot.lat_speed[order], t
@@ -154,7 +155,7 @@ class Rule5Tracker:
         ended = np.flatnonzero((w.serial == serial) & ~w.folded)  # dropped at the next step (one copy per step)
         self._fold(w.take(ended))
         w.folded[ended] = True
-        found, pos = _lookup(self._asked.serial, np.array([serial]))
+        found, pos = find_sorted(self._asked.serial, np.array([serial]))
         k = int(pos[0]) if found[0] else None
         sides = {"a": 0, "b": 1}
         margin = float(np.fmin(record["min_lon_margin_m"], record["min_lat_margin_m"]))
@@ -185,7 +186,7 @@ class Rule5Tracker:
         w = self._windows
         if not len(w):
             return
-        present, row = _lookup(np.sort(uids), w.uid)
+        present, row = find_sorted(np.sort(uids), w.uid)
         row = np.argsort(uids)[row]
         live = np.flatnonzero(present & (w.t0 < t - TIME_EPS) & ~w.folded)
         if live.size:
@@ -213,7 +214,7 @@ class Rule5Tracker:
         """Fold the windows ``w`` into their episodes."""
         judged = w.steps > 0  # a manoeuvre found at the last observed step cannot be judged
         w = w.take(np.flatnonzero(judged))
-        found, k = _lookup(self._asked.serial, w.serial)
+        found, k = find_sorted(self._asked.serial, w.serial)
         w, k = w.take(np.flatnonzero(found)), k[found]
         if not len(w):
             return
@@ -239,12 +240,12 @@ class Rule5Tracker:
         e = tracker.open
         if not len(e) or not len(sit):
             return
-        known, at = _lookup(self._asked.serial, e.serial)
+        known, at = find_sorted(self._asked.serial, e.serial)
         prior = np.zeros(e.responsible.shape, dtype=bool)
         prior[known] = self._asked.prior[at[known]]
         resp = e.responsible | prior
         order = np.argsort(keys, kind="stable")
-        present, pos = _lookup(keys[order], e.keys)
+        present, pos = find_sorted(keys[order], e.keys)
         ask = np.flatnonzero((resp.sum(axis=1) == 1) & (e.kind < FIRST_INTERSECTION_CODE) & present)
         if not ask.size:
             return
@@ -338,7 +339,7 @@ class Rule5Tracker:
         accel_max, accel_min = np.full(q.size, np.nan), np.full(q.size, np.nan)
         if judged is not None and len(judged.serial) and q.size:
             by_serial = np.argsort(judged.serial)
-            found, at = _lookup(judged.serial[by_serial], e.serial[episode])
+            found, at = find_sorted(judged.serial[by_serial], e.serial[episode])
             at = by_serial[at]
             accel_max = np.where(found, judged.accel_max[at, side], np.nan)
             accel_min = np.where(found, judged.accel_min[at, side], np.nan)
@@ -353,7 +354,7 @@ class Rule5Tracker:
         if not some.size:
             return
         serial = e.serial[ask]
-        known = _lookup(self._asked.serial, serial[some])[0]
+        known = find_sorted(self._asked.serial, serial[some])[0]
         if not known.all():
             new = some[~known]
             fresh = _Asked.empty(new.size)

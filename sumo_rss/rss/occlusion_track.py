@@ -23,7 +23,8 @@ from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .occlusion import OccluderEdges, OcclusionParams, line_of_sight, vtype_heights
 from .records import OCCLUSION_COLUMNS, OCCLUSION_CONSTRAINT
-from .responsibility import ResponsibilityTracker, _lookup
+from .responsibility import ResponsibilityTracker
+from .sorted_keys import find_sorted
 from .situations import PairSituations, VehicleFrame
 
 TIME_EPS = 1e-9  # [s]
@@ -92,7 +93,7 @@ class OcclusionTracker:
                                 vtype_heights(snapshot, self.heights), self.params.min_height_m, self.occluders)
         self.pair_steps += int((~visible).sum())
         now = keys[rows]
-        found, pos = _lookup(self._keys, now)
+        found, pos = find_sorted(self._keys, now)
         before = np.where(found, self._seen_from[pos], np.inf) if len(self._keys) else np.full(len(now), np.inf)
         seen_from = np.where(visible, np.where(np.isfinite(before), before, snapshot.time), np.inf)
         # Pairs not tested now keep their state for this step's compliance (their episodes end now).
@@ -110,12 +111,12 @@ class OcclusionTracker:
             return
         t = snapshot.time
         e = tracker.open
-        known, pos = _lookup(self._keys, e.keys)
+        known, pos = find_sorted(self._keys, e.keys)
         hidden_now = known & ~np.isfinite(self._seen_from[pos] if len(self._keys) else np.zeros(len(e)))
         # Only the open episodes' pairs are kept (sorted, as the episodes are).
         self._keys, self._seen_from = self._keys[pos[known]], self._seen_from[pos[known]]
         h = self._hidden
-        new = hidden_now & ~_lookup(h.serial, e.serial)[0]
+        new = hidden_now & ~find_sorted(h.serial, e.serial)[0]
         if np.any(new):
             fresh = _Hidden.empty(int(new.sum()))
             fresh.serial = e.serial[new]
@@ -129,7 +130,7 @@ class OcclusionTracker:
         if not len(h):
             return
         by_serial = np.argsort(e.serial, kind="stable")  # the open episodes are sorted by pair key
-        is_open, at = _lookup(e.serial[by_serial], h.serial)
+        is_open, at = find_sorted(e.serial[by_serial], h.serial)
         at = by_serial[at] if len(e) else at
         hid = is_open & hidden_now[at]
         exposed = is_open & ~hid & h.hidden & known[at]
@@ -157,7 +158,7 @@ class OcclusionTracker:
             return []
         serial = int(record["serial"])
         h = self._hidden
-        found, pos = _lookup(h.serial, np.array([serial], dtype=np.int64))
+        found, pos = find_sorted(h.serial, np.array([serial], dtype=np.int64))
         rows = self._verdicts.pop(serial, [])
         if found[0]:
             i = int(pos[0])

@@ -18,6 +18,7 @@ from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
+from .sorted_keys import find_sorted
 from .records import EVASIVE_CONSTRAINT, OCCLUSION_CONSTRAINT, RULE5_UNCHECKED
 from ..road_users import PERSON_CLASS
 from .intersection import KIND_SIGNAL
@@ -166,7 +167,7 @@ class ResponsibilityTracker:
         # or moves it far away in the very step of the collision.
         gone = ~np.isin(self._open.uids, step.uids).all(axis=1)
         self._close(gone, step.time, end_of_data=True)
-        found, pos = _lookup(keys, self._open.keys)
+        found, pos = find_sorted(keys, self._open.keys)
         still_dangerous = found & dangerous[pos] if len(keys) else found
         # 2. Compliance of both cars in every open episode (the first judged step is the one after t_b). An episode
         # that ends now is judged at this step too: the acceleration reported now was driven from the step before,
@@ -175,11 +176,11 @@ class ResponsibilityTracker:
             self._check_compliance(step, sit_rows[pos] if len(keys) else pos, found, still_dangerous)
         self._close(~still_dangerous, step.time)
         # A collided pair stays in contact or danger for a while: no new episode until it is safe once.
-        found, pos = _lookup(keys, self._collided)
+        found, pos = find_sorted(keys, self._collided)
         self._collided = self._collided[found & dangerous[pos]] if len(keys) else self._collided[:0]
         # 3. Newly dangerous pairs open an episode at the danger threshold t_b = now (or continue the one that ended
         # within ρ before).
-        new = dangerous & ~_lookup(self._open.keys, keys)[0] & ~_lookup(self._collided, keys)[0]
+        new = dangerous & ~find_sorted(self._open.keys, keys)[0] & ~find_sorted(self._collided, keys)[0]
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
         self._prev_keys = keys
@@ -262,7 +263,7 @@ class ResponsibilityTracker:
         sit = step.situations
         a, b = sit.a[rows], sit.b[rows]
         # What was safe just before t_b decides the owed response (rss.md §5).
-        seen, pos = _lookup(self._prev_keys, keys)
+        seen, pos = find_sorted(self._prev_keys, keys)
         prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         prev_priority = self._prev_priority[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
         prev_by_signal = self._prev_by_signal[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=bool)
@@ -270,7 +271,7 @@ class ResponsibilityTracker:
             # A crossing pair: what held in the area it is dangerous in now.
             area_keys = np.empty(len(keys), dtype=AREA_KEY)
             area_keys["pair"], area_keys["area"] = keys, step.area_number[rows]
-            found, at = _lookup(self._prev_areas.keys, area_keys)
+            found, at = find_sorted(self._prev_areas.keys, area_keys)
             found &= step.area_number[rows] >= 0
             seen = seen | found
             prev_rules = np.where(found, self._prev_areas.rules[at], prev_rules)
@@ -331,7 +332,7 @@ class ResponsibilityTracker:
         e.t_last = np.where(candidate, t, e.t_last)
         start = e.t_b  # the response starts when the cars can see each other (rule 4)
         if step.seen_from is not None and len(step.seen_from[0]):
-            seen, at = _lookup(step.seen_from[0], e.keys)
+            seen, at = find_sorted(step.seen_from[0], e.keys)
             start = np.where(seen, np.maximum(e.t_b, step.seen_from[1][at]), e.t_b)
         judged = t > start + TIME_EPS
         by_uid = np.argsort(step.uids)
@@ -520,11 +521,3 @@ def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, acc
     can_stop = speed * speed < 2.0 * instant_brake * enter  # NaN (a vehicle): False
     return {"entered": enter < 0.0, "stood_short": standing,
             "stopping": standing | (short & (((accel < 0.0) & (speed * speed < -2.0 * accel * enter)) | can_stop))}
-
-
-def _lookup(sorted_keys: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(found, position) of each ``query`` key in ``sorted_keys``; positions are valid indices where found."""
-    if len(sorted_keys) == 0:
-        return np.zeros(len(query), dtype=bool), np.zeros(len(query), dtype=int)
-    pos = np.clip(np.searchsorted(sorted_keys, query), 0, len(sorted_keys) - 1)
-    return sorted_keys[pos] == query, pos

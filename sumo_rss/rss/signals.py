@@ -27,7 +27,7 @@ from ..sim.snapshot import WorldSnapshot
 from ..sumo_xml import MALFORMED, output_elements
 from .intersection import next_route_edge
 from .record_checks import signal_state
-from .responsibility import _lookup
+from .sorted_keys import find_sorted
 from .situations import VehicleFrame
 
 RED, YELLOW = "rRu", "yY"  # u: red-yellow, SUMO lets no car pass yet
@@ -163,7 +163,7 @@ class _Approach:
 
     def find(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(approached at that step, its row) per id."""
-        return _lookup(self.ids, ids)
+        return find_sorted(self.ids, ids)
 
     def __len__(self) -> int:
         return int(self.ids.shape[0])
