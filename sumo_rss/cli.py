@@ -173,9 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     report = sub.add_parser("report", parents=[common], help="tables, PNG plots and report.html of a batch",
                             description="Summarise a batch folder: per-scenario responsibility, violation types, "
-                                        "a pair timeline and the ego's speed, as PNGs and one self-contained HTML "
-                                        "whose tables link each run's replay (view.html, written beside the run "
-                                        "where it is missing or older than the run).",
+                                        "rules 5 and 4 (evasive effort, occlusion; 'off' where a scenario left "
+                                        "them off), a pair timeline and the ego's speed, as PNGs and one "
+                                        "self-contained HTML whose tables link each run's replay (view.html, "
+                                        "written beside the run where it is missing or older than the run).",
                             epilog=_REPORT_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     report.add_argument("batch_dir", type=Path, help="a batch folder (with batch_summary.csv)")
     report.add_argument("--no-views", dest="views", action="store_false",

@@ -29,11 +29,15 @@ def _run(spec, seconds: float) -> tuple[Session, list]:
 
 def test_every_shipped_scenario_is_tested():
     assert SHIPPED_SCENARIOS == ["highway_dense", "highway_exit", "highway_overtake", "highway_sparse",
-                                 "intersection_occluded", "intersection_priority", "intersection_tls",
-                                 "intersection_tls_peds", "merge_onramp"]
+                                 "highway_truck_cut_in", "intersection_occluded", "intersection_priority",
+                                 "intersection_tls", "intersection_tls_peds", "merge_onramp"]
 
 
-@pytest.mark.parametrize("name", SHIPPED_SCENARIOS)
+# Staged cases of a few vehicles and no ego, each tested in its own file (test_rss_occlusion_highway.py).
+STAGED = ("highway_truck_cut_in",)
+
+
+@pytest.mark.parametrize("name", [n for n in SHIPPED_SCENARIOS if n not in STAGED])
 def test_scenario_runs_60_s_with_traffic_flowing(name):
     spec = _spec(name)
     session, snaps = _run(spec, 60.0)
@@ -94,7 +98,7 @@ def _lane_centre_offsets(network: str) -> dict[str, float]:
     return offsets
 
 
-@pytest.mark.parametrize("name", SHIPPED_SCENARIOS)
+@pytest.mark.parametrize("name", [n for n in SHIPPED_SCENARIOS if n not in STAGED])
 def test_lateral_position_is_continuous_through_lane_changes(name):
     spec = _spec(name)
     offsets = _lane_centre_offsets(spec.network)

@@ -13,6 +13,7 @@ import pandas as pd
 from ..errors import SumoRssError
 from ..files import make_folder, write_file_set
 from .inputs import check_table
+from .later_rules import later_rules_table, rules_on
 from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
 from .summary import ego_table, read_batch_csv, responsibility_table, run_label, violation_table
 
@@ -37,6 +38,8 @@ def write_report(batch_dir: Path, views: bool = True, progress: bool = False) ->
     if summary.empty:
         raise SumoRssError(f"{path}: lists no runs")
     episodes, violations, states = (_read(batch_dir, name) for name in ("episodes", "violations", "pair_states"))
+    later = later_rules_table(rules_on(batch_dir, summary), _read(batch_dir, "collisions"),
+                              _read(batch_dir, "occlusion"), violations)
     traces = ego_traces(batch_dir, summary)
     labels = run_label(summary[summary.status == "ok"]).unique().tolist()  # runs with nothing to count show 0
     responsibility, broken = responsibility_table(episodes, labels), violation_table(violations, labels)
@@ -59,7 +62,7 @@ def write_report(batch_dir: Path, views: bool = True, progress: bool = False) ->
     make_folder(figures_dir)  # before the runs' replay pages: a file standing there fails before anything is written
     try:
         links = _view_links(batch_dir, summary, progress) if views else {}
-        page = _page(batch_dir, summary, ego, responsibility, broken,
+        page = _page(batch_dir, summary, ego, responsibility, broken, later,
                      {name: base64.b64encode(data).decode("ascii") for name, data in images.items()}, links)
         writers = {figures_dir / f"{name}.png": _bytes_writer(data) for name, data in images.items()}
         writers[out] = lambda tmp: tmp.write_text(page, encoding="utf-8")
@@ -161,13 +164,13 @@ def _read_trace(path: Path) -> pd.DataFrame:
 
 
 def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibility: pd.DataFrame,
-          violations: pd.DataFrame, images: dict[str, str], links: dict[str, str]) -> str:
+          violations: pd.DataFrame, later: pd.DataFrame, images: dict[str, str], links: dict[str, str]) -> str:
     ok = int((summary.status == "ok").sum())
     labels = run_label(summary)
     runs = _escaped(_numbers_as_numbers(summary))
     runs.insert(0, "view", [f"<a href='{html.escape(links[r])}'>view</a>" if r in links else ""
                             for r in summary.run_id.astype(str)])
-    ego, responsibility = (_with_views(t, labels, summary, links) for t in (ego, responsibility))
+    ego, responsibility, later = (_with_views(t, labels, summary, links) for t in (ego, responsibility, later))
     per_label = _with_views(pd.DataFrame(index=violations.columns), labels, summary, links)["views"]
     rules = _escaped(violations)
     violations = pd.concat([rules, pd.DataFrame([per_label.tolist()], index=["views"], columns=rules.columns)])
@@ -199,6 +202,15 @@ def _page(batch_dir: Path, summary: pd.DataFrame, ego: pd.DataFrame, responsibil
         "<p>Intervals in which a vehicle broke a rule of its proper response (every vehicle; one episode can hold "
         "several); signal rules are judged at signalised junctions when the scenario's signal rule is on.</p>",
         *image("violations"), violations.to_html(escape=False),
+        "<h2>Rule 5 / rule 4: evasive effort and occlusion</h2>",
+        "<p>Both rules are opt-in (docs/rss.md): rule 5 with <code>[rss] evasive_effort</code>, rule 4 with "
+        "<code>[rss] occlusion</code> or <code>occluders</code>, as each run's scenario.toml says. 'off': no run of "
+        "the row had the rule on (0 means it was judged and found nothing); 'N (k of n runs)': counted over the k "
+        "runs that had it on. Rule 5: collisions whose other car could have avoided them by an evasive manoeuvre "
+        "(collisions.csv <code>could_have_avoided</code>). Rule 4: episodes whose cars could not see each other at "
+        "some step (occlusion.csv), those hidden already at the danger threshold (<code>occluded_at_t_b</code>), "
+        "and hidden cars' unreasonable speeds (violations <code>occluded-unreasonable-speed</code>).</p>",
+        later.to_html(escape=False),
     ]
     for name, title in (("pair_timeline", "A danger episode of the ego, step by step"), ("ego_speed", "Ego speed")):
         if name in images:

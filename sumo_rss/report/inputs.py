@@ -12,7 +12,7 @@ import pandas as pd
 from ..errors import SumoRssError, shown
 from ..rss.auditor import COLLISION_COLUMNS
 from ..rss.episode_states import PAIR_STATE_COLUMNS
-from ..rss.records import EPISODE_COLUMNS, RULE5_COLUMNS, VIOLATION_COLUMNS
+from ..rss.records import EPISODE_COLUMNS, OCCLUSION_COLUMNS, RULE5_COLUMNS, VIOLATION_COLUMNS
 from ..rss.responsibility import RESPONSIBLE_VALUES
 
 RUN_KEYS = ["run_id", "scenario", "variant", "seed"]  # the first columns of every concatenated batch CSV
@@ -21,6 +21,7 @@ COLUMNS = {  # the columns of each batch CSV (rule 5's, appended later, are not 
     "violations": RUN_KEYS + VIOLATION_COLUMNS[1:],
     "collisions": RUN_KEYS + [c for c in COLLISION_COLUMNS[1:] if c != "could_have_avoided"],
     "pair_states": RUN_KEYS + PAIR_STATE_COLUMNS[1:],
+    "occlusion": RUN_KEYS + OCCLUSION_COLUMNS[1:],  # rule 4 runs only
     "batch_summary": RUN_KEYS + ["status"],  # those the report uses
 }
 # Number columns: True where a run writes empty cells (a junction episode has no lateral margin or gap).
@@ -32,10 +33,12 @@ NUMBERS = {
     "collisions": {"seed": False, "time_s": False},
     "pair_states": {"seed": False, "time_s": False, "lon_gap_m": False, "lon_d_min_m": False, "lat_gap_m": True,
                     "lat_d_min_m": True},
+    "occlusion": {"seed": False, "t_b_s": False, "exposure_a_s": True, "exposure_b_s": True},
     "ego_trace": {"time_s": False, "speed_ms": False},
     "batch_summary": {"seed": False},
 }
 WORDS = {"episodes": {"responsible": RESPONSIBLE_VALUES, "collision": ("True", "False")},
+         "occlusion": {"occluded_at_t_b": ("True", "False")},
          "batch_summary": {"status": ("ok", "failed", "missing", "interrupted")}}
 
 
