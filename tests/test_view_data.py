@@ -372,7 +372,7 @@ def test_the_report_links_every_run_to_its_view(dense_run, tmp_path):
     assert proc.returncode == 0, proc.stderr
     page = (batch / "report.html").read_text()
     link = "<a href='highway_dense/0/view.html'>"
-    assert (run / "view.html").is_file() and page.count(link) == 4  # ego, responsibility, violations, runs tables
+    assert (run / "view.html").is_file() and page.count(link) == 5  # ego, responsibility, rule 5 / rule 4, violations, runs tables
     stamp = (run / "view.html").stat().st_mtime_ns
     assert run_cli("report", str(batch), "--quiet").returncode == 0 and (run / "view.html").stat().st_mtime_ns == stamp
     assert run_cli("report", str(batch), "--no-views").returncode == 0 and link not in (batch / "report.html").read_text()
