@@ -15,7 +15,7 @@ from sumo_rss.planner.lanes import CURRENT, LEFT
 from sumo_rss.rss.params import RssParamArrays, RssParams
 
 V_REF, V_SLOW = 33.0, 25.0  # [m/s]
-TAIL = CostWeights(beyond_horizon=5.0)
+TAIL = CostWeights()  # the default: 5 s beyond the horizon
 GAMMA_TAIL = sum(0.7 ** i for i in range(5, 10))  # layers 6-10 of 1 s: 0.4656...
 
 
@@ -43,7 +43,8 @@ def test_keeping_behind_a_slow_car_costs_its_speed_beyond_the_horizon_and_the_fr
     lead_ratio = max(0.4, (120.0 - gap[0]) / 120.0)
     assert tail[0] == pytest.approx(GAMMA_TAIL * 0.5 * (0.3 * 8.0 + lead_ratio * 0.1 * 8.0), rel=1e-12)
     assert tail[1] == 0.0
-    assert np.all(beyond_horizon_cost(sim, end_chain, gap, V_REF, CostWeights(), 1.0) == 0.0)  # release: no tail
+    release = CostWeights(beyond_horizon=0.0)  # epsilon.md §4.2: no tail
+    assert np.all(beyond_horizon_cost(sim, end_chain, gap, V_REF, release, 1.0) == 0.0)
 
 
 def test_a_change_still_short_of_its_lane_at_the_horizon_is_taken_on_at_its_end_speed(highway):

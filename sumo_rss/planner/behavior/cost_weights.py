@@ -30,5 +30,6 @@ class CostWeights:
     nav_speed_floor: float = 10.0  # [m/s] u = max(10, v)
     discount: float = 0.7
     # [s] the efficiency and leader costs of the speed the ego's end lane holds it to, charged this long after the
-    # horizon (layers of the last layer's duration, discounted on); 0: the release's zero tail
-    beyond_horizon: float = 0.0
+    # horizon (layers of the last layer's duration, discounted on); 0: the release's zero tail. 5 s: chosen on
+    # highway_overtake tuning seeds 100-119 against 0 and 10 s (docs/planner.md "Cost weights")
+    beyond_horizon: float = 5.0
