@@ -139,7 +139,7 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
     c_occ, c_nav = _lane_costs(policies, policy_of, v, nav, w)
     discount = durations * w.discount ** np.arange(len(ends))
     layer = discount * (0.5 * (c_ego + c_lead) + 0.5 * (c_rss + c_occ) + c_nav)  # [R, layers]
-    end_chain = np.array([_CHAIN[p.lats[len(ends) - 1]] for p in policies])[policy_of]
+    end_chain = np.array([TARGET_CHAIN[p.lats[len(ends) - 1]] for p in policies])[policy_of]
     tail = beyond_horizon_cost(sim, end_chain, gap[:, -1], v_ref, w, float(durations[-1]))
     P = len(policies)
     layer_cost = np.zeros((P, len(ends) + 1))  # the layers, then the cost beyond the horizon
@@ -209,7 +209,7 @@ def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_
     return gap - np.where(led, np.maximum(following - rss_following_headway * v, 0.0), 0.0)
 
 
-_CHAIN = {Lat.KEEP: CURRENT, Lat.LEFT: LEFT, Lat.RIGHT: RIGHT}  # the chain a lateral action aims at
+TARGET_CHAIN = {Lat.KEEP: CURRENT, Lat.LEFT: LEFT, Lat.RIGHT: RIGHT}  # the lane chain a lateral action aims at
 
 
 def _lane_costs(policies: list[Policy], policy_of: np.ndarray, v: np.ndarray, nav: Navigation,
