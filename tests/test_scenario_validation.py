@@ -83,7 +83,7 @@ BROKEN = [
     ("boolean as number", lambda d: _set(d, "seed", True), "seed", "expected an integer"),
     ("outputs typo", lambda d: _set(d, "outputs", {"fcd_file": True}), "outputs.fcd_file", "unknown key"),
     ("unknown planner cost", lambda d: _set(d, "ego.planner.costs", {"overtake_bonus": 1.0}),
-     "ego.planner.costs.overtake_bonus", "known keys here: blocked_by_leader"),
+     "ego.planner.costs.overtake_bonus", "known keys here: beyond_horizon, blocked_by_leader"),
     ("negative planner cost", lambda d: _set(d, "ego.planner.costs", {"lane_change_left": -0.1}),
      "ego.planner.costs.lane_change_left", "expected a number >= 0"),
     ("planner discount above 1", lambda d: _set(d, "ego.planner.costs", {"discount": 1.5}),

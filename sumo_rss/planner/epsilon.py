@@ -30,7 +30,7 @@ from .behavior.cfb import branch_scenarios, uncertain_agents
 from .behavior.controllers import IdmParams, VehicleLimits
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
-from .behavior.evaluation import Navigation, evaluate
+from .behavior.evaluation import TARGET_CHAIN, Navigation, evaluate
 from .behavior.forward_sim import JunctionArea, Rollouts, SimResult, SimSettings, Vehicles, simulate
 from .behavior.intention import rule_belief
 from .behavior.key_vehicles import KeyVehicles, key_vehicles
@@ -405,7 +405,7 @@ def _speed_reach(v: float) -> float:
 
 
 def _target(lat: Lat) -> int:
-    return {Lat.KEEP: CURRENT, Lat.LEFT: LEFT, Lat.RIGHT: RIGHT}[lat]
+    return TARGET_CHAIN[lat]
 
 
 def _row(params: RssParamArrays, i: int):

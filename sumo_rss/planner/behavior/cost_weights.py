@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class CostWeights:
-    """epsilon.md §9 defaults."""
+    """epsilon.md §9 defaults, and the port's cost beyond the horizon (``beyond_horizon``, docs/planner.md
+    "Cost weights")."""
 
     lack_speed: float = 0.3
     over_speed: float = 0.03
@@ -28,3 +29,7 @@ class CostWeights:
     recommended_reward: float = 1.0
     nav_speed_floor: float = 10.0  # [m/s] u = max(10, v)
     discount: float = 0.7
+    # [s] the efficiency and leader costs of the speed the ego's end lane holds it to, charged this long after the
+    # horizon (layers of the last layer's duration, discounted on); 0: the release's zero tail. 5 s: chosen on
+    # highway_overtake tuning seeds 100-119 against 0 and 10 s (docs/planner.md "Cost weights")
+    beyond_horizon: float = 5.0

@@ -2,8 +2,10 @@
 
 Per layer i (end-of-layer ego state, except RSS which sums over the layer's samples):
 efficiency (c_ego), leader (c_lead), RSS safe-velocity penalty (c_rss), forbidden lane (c_occ),
-navigation/user (c_nav); C_i = t_i·γ^i·[(c_ego + c_lead)/2 + (c_rss + c_occ)/2 + c_nav]. A policy's cost is the
-scenario-weighted sum over its rollouts; a policy that collides in any of its scenarios is invalid.
+navigation/user (c_nav); C_i = t_i·γ^i·[(c_ego + c_lead)/2 + (c_rss + c_occ)/2 + c_nav]. Beyond the horizon (a
+departure from the release's zero tail, docs/planner.md "Cost weights"): (c_ego + c_lead)/2 at the speed the ego's
+end lane holds it to, over ``CostWeights.beyond_horizon`` s more layers with the discount continued. A policy's cost
+is the scenario-weighted sum over its rollouts; a policy that collides in any of its scenarios is invalid.
 Units: m, s, m/s.
 """
 from __future__ import annotations
@@ -17,6 +19,7 @@ from ...angles import cos_sin
 from ...rss import formulas
 from ...rss.responsibility import EPS_ACCEL, lateral_speed_bound
 from ...rss.situations import extent_across
+from ..lanes import CURRENT, LEFT, RIGHT
 from ..road_frame import RoadFrame
 from .cost_weights import CostWeights
 from .dcp_tree import Lat, Policy
@@ -41,7 +44,7 @@ class Evaluation:
     cost: np.ndarray  # [P]
     valid: np.ndarray  # [P] bool
     risky: np.ndarray  # [P] bool
-    layer_cost: np.ndarray  # [P, layers] scenario-weighted
+    layer_cost: np.ndarray  # [P, layers + 1] scenario-weighted; the last column: beyond the horizon
 
 
 def rss_penalty(sim: SimResult, frame: RoadFrame, rss_ego: Any, rss_agents: Any, length: np.ndarray,
@@ -124,17 +127,10 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
     starts = np.concatenate([[0], ends[:-1]])
     durations = sim.t[ends] - sim.t[starts]
     v = sim.speed[:, ends, 0]  # [R, layers]
-    c_ego = np.where(v < v_ref, w.lack_speed * (v_ref - v),
-                     np.where(v > v_ref + w.over_speed_tolerance, w.over_speed * (v - v_ref - w.over_speed_tolerance),
-                              0.0))
     v_lead = sim.ego_lead_speed[:, ends]
     gap = leader_gap_for_cost(sim.ego_lead_gap[:, ends], v, v_lead, rss_ego, rss_agents, rss_following_headway,
                               sim.ego_lead_held_gap[:, ends], sim.ego_lead_is_car[:, ends])
-    residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
-    blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
-    c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
-                      (w.blocked_by_leader * np.maximum(v - v_lead, 0.0) + w.leader_below_desired * (v_ref - v_lead)),
-                      0.0)
+    c_ego, c_lead = efficiency_costs(v, v_lead, gap, v_ref, w)
     per_sample = rss_penalty(sim, frame, rss_ego, rss_agents, length, width, w, cut_in_ahead)  # [R, T+1]
     sample_layer = np.searchsorted(ends, np.arange(sim.t.size), side="left")  # sample k ∈ layer (k ≤ end)
     c_rss = np.zeros_like(v)
@@ -143,14 +139,57 @@ def evaluate(sim: SimResult, frame: RoadFrame, policies: list[Policy], policy_of
     c_occ, c_nav = _lane_costs(policies, policy_of, v, nav, w)
     discount = durations * w.discount ** np.arange(len(ends))
     layer = discount * (0.5 * (c_ego + c_lead) + 0.5 * (c_rss + c_occ) + c_nav)  # [R, layers]
+    end_chain = np.array([TARGET_CHAIN[p.lats[len(ends) - 1]] for p in policies])[policy_of]
+    tail = beyond_horizon_cost(sim, end_chain, gap[:, -1], v_ref, w, float(durations[-1]))
     P = len(policies)
-    layer_cost = np.zeros((P, len(ends)))
-    np.add.at(layer_cost, policy_of, weight_of[:, None] * layer)
+    layer_cost = np.zeros((P, len(ends) + 1))  # the layers, then the cost beyond the horizon
+    np.add.at(layer_cost, policy_of, weight_of[:, None] * np.column_stack([layer, tail]))
     valid = np.ones(P, dtype=bool)
     np.logical_and.at(valid, policy_of, sim.valid)
     risky = np.zeros(P, dtype=bool)
     np.logical_or.at(risky, policy_of, per_sample.sum(axis=1) > 0.0)
     return Evaluation(layer_cost.sum(axis=1), valid, risky, layer_cost)
+
+
+def efficiency_costs(v: np.ndarray, v_lead: np.ndarray, gap: np.ndarray, v_ref: float, w: CostWeights
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """epsilon.md §4.1.1-2: the ego's efficiency cost c_ego at speed ``v`` and its leader cost c_lead behind a
+    leader at ``v_lead`` ``gap`` m ahead as the cost reads it (:func:`leader_gap_for_cost`; inf: none); ``v_ref``:
+    the reference speed [m/s]. Arrays of one shape."""
+    c_ego = np.where(v < v_ref, w.lack_speed * (v_ref - v),
+                     np.where(v > v_ref + w.over_speed_tolerance, w.over_speed * (v - v_ref - w.over_speed_tolerance),
+                              0.0))
+    residual = np.clip((LEADER_RANGE - gap) / LEADER_RANGE, 0.0, 1.0)
+    blocked = (v < v_ref) & (v_lead < v_ref) & (gap < LEADER_RANGE)
+    c_lead = np.where(blocked, np.maximum(w.leader_min_ratio, residual) *
+                      (w.blocked_by_leader * np.maximum(v - v_lead, 0.0) + w.leader_below_desired * (v_ref - v_lead)),
+                      0.0)
+    return c_ego, c_lead
+
+
+def beyond_horizon_cost(sim: SimResult, end_chain: np.ndarray, gap: np.ndarray, v_ref: float, w: CostWeights,
+                        layer_duration: float) -> np.ndarray:
+    """[R] What each rollout's end state costs after the horizon: the release's (c_ego + c_lead)/2 at the speed the
+    ego's end lane holds it to, over ``w.beyond_horizon`` s of further layers of ``layer_duration`` s, discounted on
+    from the last layer (γ^L .. γ^(L+N-1), N layers). That speed is the reference speed, or the speed of the car
+    the ego follows there at the horizon's end where it is slower (the leader cost's range; a lane end or a stop
+    line is not a speed the ego is held to: that wait is over when the light turns or the ego merges). An ego that
+    has not reached the lane its last layer aims at (``end_chain`` [R]: chain index) is taken on at its end speed
+    where that is slower: a lane change the virtual barrier held gains nothing. ``gap`` [R]: the bumper gap to that
+    leader as the leader cost reads it [m] (inf: none). The release's cost stops at the horizon: a change that
+    wins 8 m/s behind a slow car pays its navigation cost in every layer and gets the speed in the last two or
+    three, discounted, so it lost to keeping behind the car (docs/planner.md)."""
+    layers = int(round(w.beyond_horizon / layer_duration))
+    if layers <= 0:
+        return np.zeros(sim.speed.shape[0])
+    v_end, v_lead = sim.speed[:, -1, 0], sim.ego_lead_speed[:, -1]
+    led = np.isfinite(gap) & sim.ego_lead_is_car[:, -1]
+    held = np.where(led, np.minimum(v_lead, v_ref), v_ref)
+    held = np.where(sim.chain[:, -1, 0] == end_chain, held, np.minimum(held, v_end))
+    c_ego, c_lead = efficiency_costs(held, np.where(led, v_lead, v_ref), np.where(led, gap, np.inf), v_ref, w)
+    first = sim.layer_end.size
+    weight = layer_duration * float(np.sum(w.discount ** np.arange(first, first + layers)))
+    return weight * 0.5 * (c_ego + c_lead)
 
 
 def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_ego: Any, rss_agents: Any,
@@ -168,6 +207,9 @@ def leader_gap_for_cost(gap: np.ndarray, v: np.ndarray, v_lead: np.ndarray, rss_
     led = np.isfinite(gap) & is_car
     following = following_distance(v, np.where(led, v_lead, v), rss_ego, hardest_braking(rss_agents), held_gap)
     return gap - np.where(led, np.maximum(following - rss_following_headway * v, 0.0), 0.0)
+
+
+TARGET_CHAIN = {Lat.KEEP: CURRENT, Lat.LEFT: LEFT, Lat.RIGHT: RIGHT}  # the lane chain a lateral action aims at
 
 
 def _lane_costs(policies: list[Policy], policy_of: np.ndarray, v: np.ndarray, nav: Navigation,
