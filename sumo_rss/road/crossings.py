@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from .frenet import LaneShapes
 from .junctions import _RANK_OF_BYTE, JunctionModel, _path_polyline
+from .link_pairs import expand_ranges
 from .model_cache import cached
 from .net_file import read_net
 from .network import RoadNetwork
@@ -49,11 +50,8 @@ class CrossingModel:
 
     def areas_of_links(self, links: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(owner, k): every crossing area k of each of ``links`` (owner: the position in ``links``)."""
-        start = np.searchsorted(self.link, links, side="left")
-        stop = np.searchsorted(self.link, links, side="right")
-        count = stop - start
-        owner = np.repeat(np.arange(len(links)), count)
-        return owner, np.arange(int(count.sum())) - (np.cumsum(count) - count)[owner] + start[owner]
+        return expand_ranges(np.searchsorted(self.link, links, side="left"),
+                             np.searchsorted(self.link, links, side="right"))
 
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[C] rank of every crossing's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import SumoRssError
+from ..road.link_pairs import expand_ranges
 from ..sim.snapshot import WorldSnapshot
 
 DRIVER_SHARE = 1.0 / 3.0  # the driver sits this share of the vehicle's length behind its front bumper
@@ -96,7 +97,8 @@ class OccluderEdges:
         keys = ix * ny + iy
         first = np.searchsorted(self.cell_keys, keys, side="left")
         last = np.searchsorted(self.cell_keys, keys, side="right")
-        seg, entry = _expand(seg, first, last - first)
+        owner, entry = expand_ranges(first, last)
+        seg = seg[owner]
         edge = self.edge_of[entry]
         hit = _segments_cross(ax[seg], ay[seg], bx[seg], by[seg], self.x0[edge], self.y0[edge], self.x1[edge],
                               self.y1[edge])
@@ -109,16 +111,8 @@ def _cells(lo_x: np.ndarray, hi_x: np.ndarray, lo_y: np.ndarray, hi_y: np.ndarra
     """(row, ix, iy): every grid cell of each row's cell range [lo, hi] on both axes."""
     span_y = hi_y - lo_y + 1
     count = (hi_x - lo_x + 1) * span_y
-    row = np.repeat(np.arange(len(lo_x)), count)
-    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    row, local = expand_ranges(np.zeros_like(count), count)
     return row, lo_x[row] + local // span_y[row], lo_y[row] + local % span_y[row]
-
-
-def _expand(row: np.ndarray, first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(row, index): for each ``row``, the indices first, first + 1, ..., first + count − 1."""
-    rows = np.repeat(row, count)
-    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    return rows, np.repeat(first, count) + local
 
 
 def _segments_cross(ax, ay, bx, by, cx, cy, dx, dy) -> np.ndarray:

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from ..angles import wrap_angle
 from ..jit import jitable
+from ..road.link_pairs import expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import (combine_lateral, combine_opposite, combine_same_dir, is_safe_distance, lateral_reach, lon_reach,
@@ -381,10 +382,9 @@ def _joined_offset(network: RoadNetwork, lanes: np.ndarray, ref_lanes: np.ndarra
     row_length = np.array([len(row) for row in rows], dtype=np.int64)
     reached = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
     # Every (pair, lane its lane leads on to), in the order of each lane's row.
-    count = row_length[source_of]
-    pair = np.repeat(np.arange(len(lane)), count)
-    within = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    candidate = reached[np.repeat((np.cumsum(row_length) - row_length)[source_of], count) + within]
+    start = (np.cumsum(row_length) - row_length)[source_of]
+    pair, at = expand_ranges(start, start + row_length[source_of])
+    candidate = reached[at]
     on_edge = network.lane_edge[candidate] == network.lane_edge[ref[pair]]
     candidate, pair = candidate[on_edge], pair[on_edge]
     offsets = network.lane_offset[candidate] - network.lane_offset[ref[pair]]
