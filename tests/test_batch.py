@@ -397,7 +397,10 @@ def test_ctrl_c_stops_cleanly_and_keeps_what_finished(two_scenarios, tmp_path, s
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint,
                               start_new_session=True)
     deadline = time.time() + 120
-    while not list(out.glob("*/*/summary.json")) and time.time() < deadline:
+    # A finished run: its summary in its own folder, not in the '.partial' folder it is written in before the rename
+    # (pathlib's '*' matches dot-folders too).
+    while not [s for s in out.glob("*/*/summary.json") if not s.parent.name.endswith(".partial")] and \
+            time.time() < deadline:
         time.sleep(0.05)
     if stop == signal.SIGINT:
         os.killpg(parent.pid, stop)
