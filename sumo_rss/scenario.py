@@ -207,7 +207,7 @@ class ScenarioSpec:
         }
         if self.rss.evasive != EvasiveParams():  # left out at the defaults: the scenario's hash stays what it was
             data["rss"].update(evasive_effort=self.rss.evasive.enabled, evasive_horizon_s=self.rss.evasive.horizon_s,
-                               evasive_margin_m=self.rss.evasive.margin_m)
+                               evasive_lookback_s=self.rss.evasive.lookback_s)
         if self.rss.occlusion != OcclusionParams():  # the same: left out at the defaults
             o = self.rss.occlusion
             data["rss"].update(occlusion=o.enabled, occluders=_plain(o.occluders), occluder_min_height_m=o.min_height_m,

@@ -23,7 +23,7 @@ class RssSpec:
     hold_standing: bool = False  # CARLA's convention: a car standing still does not accelerate during ρ
     raw_episodes: bool = False  # an episode re-opening within ρ of its end is a new one (default: it continues)
     junction_brake_min: bool = False  # ad_rss's reading: a yielding car brakes at b_min even if it stops before
-    evasive: EvasiveParams = field(default_factory=EvasiveParams)  # rule 5: evasive_effort, _horizon_s, _margin_m
+    evasive: EvasiveParams = field(default_factory=EvasiveParams)  # rule 5: evasive_effort, _horizon_s, _lookback_s
     occlusion: OcclusionParams = field(default_factory=OcclusionParams)  # rule 4: occlusion, occluders, occlu*_
 
 
@@ -34,7 +34,8 @@ def read_rss(t: TableReader, demand: DemandSpec, ego: EgoSpec | None, scenario_f
     raw_episodes, junction_brake_min = t.boolean("raw_episodes", False), t.boolean("junction_brake_min", False)
     evasive = evasive_params(preset, t.number("evasive_horizon_s", EvasiveParams.horizon_s, min=0.0, max=10.0,
                                               min_exclusive=True),
-                             t.number("evasive_margin_m", EvasiveParams.margin_m, min=0.0, max=100.0),
+                             t.number("evasive_lookback_s", EvasiveParams.lookback_s, min=0.0, max=60.0,
+                                      min_exclusive=True),
                              t.boolean("evasive_effort", False))
     occlusion = _read_occlusion(t, scenario_file)
     roles = {role: _read_param_overrides(t.table(role)) for role in ROLES if t.has(role)}

@@ -58,13 +58,13 @@ def test_a_lateral_candidate_comes_to_rest_one_lane_over():
 
 
 def test_rule5_settings_are_checked():
-    assert evasive_params("ad_rss") == EvasiveParams(3.0, 1.0, enabled=False)
+    assert evasive_params("ad_rss") == EvasiveParams(3.0, 5.0, enabled=False)
     assert evasive_params("ad_rss", enabled=True).enabled
     assert evasive_params("krauss", horizon_s=2.0).horizon_s == 2.0
     with pytest.raises(ValueError, match="evasive_horizon_s must be in"):
         evasive_params("ad_rss", horizon_s=0.0)
-    with pytest.raises(ValueError, match="evasive_margin_m must be in"):
-        evasive_params("ad_rss", margin_m=-1.0)
+    with pytest.raises(ValueError, match="evasive_lookback_s must be in"):
+        evasive_params("ad_rss", lookback_s=0.0)
 
 
 def test_a_leader_hit_from_behind_could_not_have_evaded(net):

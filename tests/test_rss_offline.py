@@ -21,6 +21,7 @@ from sumo_rss.batch.runner import param_resolver
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import Auditor, CollisionInput, ParamResolver
 from sumo_rss.rss.fcd import FcdError, FcdReader, audit_fcd, overlap_contacts, read_collisions, read_vehicle_info
+from sumo_rss.rss.params import EvasiveParams
 from sumo_rss.rss.signals import SignalStates
 from sumo_rss.sim.session import Session
 from sumo_rss.sim.snapshot import WorldSnapshot
@@ -61,7 +62,8 @@ def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_s
     valid_scenario["demand"]["flows"] = []
     del valid_scenario["ego"]
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))
-    online = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "crash")
+    rule5 = EvasiveParams(enabled=True)  # asked of the collision, from the kept steps, both ways alike
+    online = Auditor(RoadNetwork.from_file(spec.net_file), param_resolver(spec), "crash", evasive=rule5)
     run_dir = tmp_path / "run"
     with Session(spec, run_dir, fcd=True) as session:
         libsumo.route.add("hw", ["hw0", "hw1", "hw2"])
@@ -77,7 +79,8 @@ def test_collisions_are_joined_the_same_way_online_and_offline(tmp_path, valid_s
     off = audit_fcd(run_dir / "fcd.xml", RoadNetwork.from_file(spec.net_file), param_resolver(spec),
                     vehicles=read_vehicle_info(run_dir / "routes.rou.xml", spec.net_file),
                     collisions=run_dir / "collisions.xml",
-                    run_id="crash")
+                    run_id="crash", evasive=rule5)
+    assert on.episodes.evasive_checked.tolist() == [True]
     for name in ("episodes", "violations", "collisions"):
         assert getattr(off, name).to_csv(index=False) == getattr(on, name).to_csv(index=False), name
     # Without SUMO's collision file the contact is found from overlapping bounding boxes, one step later at most.

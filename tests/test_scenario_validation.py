@@ -94,11 +94,11 @@ BROKEN = [
     ("misspelt rss parameter", lambda d: _set(d, "rss.background", {"lon_brake_mx": 6.0}),
      "rss.background.lon_brake_mx", "(did you mean 'lon_brake_max'?); known keys here: lat_accel_max"),
     ("unknown rss role", lambda d: _set(d, "rss.trucks", {"lon_brake_max": 6.0}), "rss.trucks",
-     "known keys here: background, ego, evasive_effort, evasive_horizon_s, evasive_margin_m, hold_standing"),
+     "known keys here: background, ego, evasive_effort, evasive_horizon_s, evasive_lookback_s, hold_standing"),
     ("rule 5 horizon of 0 s", lambda d: _set(d, "rss.evasive_horizon_s", 0.0), "rss.evasive_horizon_s",
      "expected a number in (0, 10]"),
-    ("negative rule 5 margin", lambda d: _set(d, "rss.evasive_margin_m", -1.0), "rss.evasive_margin_m",
-     "expected a number in [0, 100]"),
+    ("rule 5 look-back of 0 s", lambda d: _set(d, "rss.evasive_lookback_s", 0.0), "rss.evasive_lookback_s",
+     "expected a number in (0, 60]"),
     ("ego named like a flow vehicle", lambda d: _set(d, "ego.id", "main.3"), "ego.id",
      "not a vehicle of flow 'main'"),
     ("reserved vType name", lambda d: _set(d, "demand.vtypes", {"ego_type": {"probability": 1.0}}),
@@ -142,7 +142,7 @@ def test_rule5_settings_are_read_and_kept_in_the_written_scenario(tmp_path, vali
     assert "evasive_horizon_s" not in load_scenario(write_scenario(tmp_path, valid_scenario)).to_toml_data()["rss"]
     _set(valid_scenario, "rss.evasive_horizon_s", 2.5)
     spec = load_scenario(write_scenario(tmp_path, valid_scenario))
-    assert (spec.rss.evasive.horizon_s, spec.rss.evasive.margin_m) == (2.5, 1.0)
+    assert (spec.rss.evasive.horizon_s, spec.rss.evasive.lookback_s) == (2.5, 5.0)
     assert spec.to_toml_data()["rss"]["evasive_horizon_s"] == 2.5
 
 

@@ -166,29 +166,27 @@ class EvasiveParams:
     """Rule 5's settings (rss.md §8), the same for every preset (:func:`evasive_params`)."""
 
     horizon_s: float = 3.0  # T [s]: how far ahead an evasive manoeuvre must avoid the collision
-    margin_m: float = 1.0  # [m] an episode whose lon or lat margin fell below −this is a near miss (asked)
-    # Off by default (docs/rss.md, rule 5): asked of near misses it blames the car a tailgater drives at for not
-    # stopping or speeding away (acosta 200-215 s: 238 of 661 episodes), and it costs 1.5x the audit's time.
-    enabled: bool = False
+    lookback_s: float = 5.0  # [s] a collision's steps this far back are asked (the steps kept: docs/rss.md)
+    enabled: bool = False  # off by default (docs/rss.md, rule 5)
 
     def problems(self) -> list[str]:
         """Every range rule this set breaks (empty when valid)."""
         out = []
         if not 0.0 < self.horizon_s <= 10.0:
             out.append(f"evasive_horizon_s must be in (0, 10] s, is {self.horizon_s:g}")
-        if not 0.0 <= self.margin_m <= 100.0:
-            out.append(f"evasive_margin_m must be in [0, 100] m, is {self.margin_m:g}")
+        if not 0.0 < self.lookback_s <= 60.0:
+            out.append(f"evasive_lookback_s must be in (0, 60] s, is {self.lookback_s:g}")
         return out
 
 
-def evasive_params(preset: str, horizon_s: float | None = None, margin_m: float | None = None,
+def evasive_params(preset: str, horizon_s: float | None = None, lookback_s: float | None = None,
                    enabled: bool = False) -> EvasiveParams:
-    """Rule 5's settings of ``preset`` (T = 3 s, near miss below −1 m for all of PRESETS), with the given
+    """Rule 5's settings of ``preset`` (T = 3 s, a look-back of 5 s for all of PRESETS), with the given
     overrides; raises ``ValueError`` listing every broken rule."""
     if preset not in PRESETS:
         raise ValueError(f"unknown RSS preset {preset!r}; expected one of {', '.join(PRESETS)}")
     params = EvasiveParams(enabled=enabled)
-    params = replace(params, **{k: float(v) for k, v in (("horizon_s", horizon_s), ("margin_m", margin_m))
+    params = replace(params, **{k: float(v) for k, v in (("horizon_s", horizon_s), ("lookback_s", lookback_s))
                                 if v is not None})
     problems = params.problems()
     if problems:
