@@ -118,11 +118,13 @@ class Rule5Tracker:
         self.params = params or EvasiveParams()
         self._motion: deque[StepMotion] = deque()  # the look-back window's steps, oldest first
         self._asked: deque[AskedStep | None] = deque()  # in step with _motion
-        # Joinable closed episodes (sorted by serial): which car was responsible in them, until when they may go on.
+        # Joinable closed episodes with a responsible car (sorted by serial): which car was responsible in them,
+        # until when they may go on; those closed since the last step wait in _closed (serial, a, b, expiry).
         self._prior_serial = np.zeros(0, np.int64)
         self._prior = np.zeros((0, 2), bool)
         self._prior_expiry = np.zeros(0)
-        self._parts: list[tuple[int, float]] = []  # (serial, time) of the joinable closes within the window
+        self._closed: list[tuple[int, bool, bool, float]] = []
+        self._parts: deque[tuple[float, int]] = deque()  # (time, serial) of their closes within the window
         self._prev_uid = np.zeros(0, np.int64)  # sorted
         self._prev_lat = np.zeros(0)
         self._prev_time: float | None = None
@@ -144,10 +146,9 @@ class Rule5Tracker:
         while self._motion and self._motion[0].time < oldest:
             self._motion.popleft()
             self._asked.popleft()
-        self._parts = [(serial, time) for serial, time in self._parts if time >= oldest]
-        keep = (self._prior_expiry >= t - TIME_EPS) | np.isin(self._prior_serial, tracker.open.serial)
-        self._prior_serial, self._prior, self._prior_expiry = (x[keep] for x in (self._prior_serial, self._prior,
-                                                                                 self._prior_expiry))
+        while self._parts and self._parts[0][0] < oldest:
+            self._parts.popleft()
+        self._update_priors(t, tracker.open.serial)
         self._motion.append(StepMotion(t, uids[order], snapshot.accel[order].copy(), lat_accel[order], tolerance))
         self._asked.append(asked_step(snapshot, uids, frame, situations, keys, tracker, params,
                                       (self._prior_serial, self._prior)))
@@ -168,9 +169,10 @@ class Rule5Tracker:
         c1 = record["vehicle_a"] if c1_side == 0 else record["vehicle_b"]
         record.update(evasive_checked=asked, evasive_last_s=verdict.last_legal if asked else np.nan,
                       rule5_responsible=c1 if failed else "")
-        if joinable:
-            self._remember(serial, record["responsible"], time + window)
-            self._parts.append((serial, time))
+        if joinable and record["responsible"] != "none":
+            self._closed.append((serial, record["responsible"] in ("a", "both"), record["responsible"] in ("b", "both"),
+                                 time + window))
+            self._parts.append((time, serial))
         if not failed:
             return []
         return [{"run_id": record["run_id"], "episode_key": record["episode_key"], "vehicle_id": c1,
@@ -179,17 +181,23 @@ class Rule5Tracker:
                  "excess": verdict.fail_excess, "t_start_s": verdict.first_legal, "t_end_s": verdict.last_legal}]
 
     # ---------------------------------------------------------------------------------------------------------
-    def _remember(self, serial: int, responsible: str, expiry: float) -> None:
-        """Which car was responsible in a joinable closed episode (c₂'s violations in it count when it goes on)."""
-        flags = np.array([[responsible in ("a", "both"), responsible in ("b", "both")]])
-        found, pos = find_sorted(self._prior_serial, np.array([serial]))
-        if found[0]:
-            self._prior[pos[0]], self._prior_expiry[pos[0]] = flags[0], expiry
-            return
-        at = int(np.searchsorted(self._prior_serial, serial))
-        self._prior_serial = np.insert(self._prior_serial, at, serial)
-        self._prior = np.insert(self._prior, at, flags, axis=0)
-        self._prior_expiry = np.insert(self._prior_expiry, at, expiry)
+    def _update_priors(self, t: float, open_serials: np.ndarray) -> None:
+        """Merge the episodes closed since the last step into the priors (a later close of a serial replaces an
+        earlier one) and forget those that can no longer go on."""
+        if self._closed:
+            serials, a, b, expiries = zip(*self._closed)
+            self._closed = []
+            serial = np.concatenate([self._prior_serial, np.array(serials, np.int64)])
+            prior = np.concatenate([self._prior, np.column_stack([a, b]).astype(bool)])
+            expiry = np.concatenate([self._prior_expiry, np.array(expiries, float)])
+            order = np.argsort(serial, kind="stable")
+            last = order[np.r_[serial[order][1:] != serial[order][:-1], True]]
+            self._prior_serial, self._prior, self._prior_expiry = serial[last], prior[last], expiry[last]
+        keep = self._prior_expiry >= t - TIME_EPS
+        if not keep.all():
+            keep[~keep] = np.isin(self._prior_serial[~keep], open_serials)
+            self._prior_serial, self._prior, self._prior_expiry = (x[keep] for x in (self._prior_serial, self._prior,
+                                                                                     self._prior_expiry))
 
     def _replay(self, serial: int, c1_side: int) -> _Verdict:
         """The verdict of the collided episode ``serial`` over the kept steps, in the order the auditor met them:
@@ -202,7 +210,7 @@ class Rule5Tracker:
         c1 = [asked.c1_uid[k[0]] for _, asked, k in steps if k.size and asked.c1_side[k[0]] == c1_side]
         if not c1:  # not asked within the look-back window
             return verdict
-        parts = [time for s, time in self._parts if s == serial]
+        parts = [time for time, s in self._parts if s == serial]
         prev = None
         for motion, asked, k in steps:
             t = motion.time

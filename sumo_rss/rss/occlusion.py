@@ -157,13 +157,23 @@ def line_of_sight(snapshot: WorldSnapshot, a: np.ndarray, b: np.ndarray, heights
     if len(tall) and len(a):
         cx, cy = snapshot.centres()
         half_l, half_w = 0.5 * snapshot.length[tall], 0.5 * snapshot.width[tall]
-        reach = 0.5 * np.hypot(bx - ax, by - ay) + float(np.hypot(half_l, half_w).max())
-        near = cKDTree(np.column_stack([0.5 * (ax + bx), 0.5 * (ay + by)])).sparse_distance_matrix(
-            cKDTree(np.column_stack([cx[tall], cy[tall]])), float(reach.max()), output_type="ndarray")
+        radius = np.hypot(half_l, half_w)  # [m] a box's circumradius
+        reach = 0.5 * np.hypot(bx - ax, by - ay) + float(radius.max())
+        # Trees built without balancing: faster to build, the same neighbours (in another order).
+        near = cKDTree(np.column_stack([0.5 * (ax + bx), 0.5 * (ay + by)]), balanced_tree=False,
+                       compact_nodes=False).sparse_distance_matrix(
+            cKDTree(np.column_stack([cx[tall], cy[tall]]), balanced_tree=False, compact_nodes=False),
+            float(reach.max()), output_type="ndarray")
         pair, k = near["i"].astype(np.int64), near["j"].astype(np.int64)
         other = tall[k]
         third = (near["v"] <= reach[pair]) & (other != a[pair]) & (other != b[pair])
         pair, k, other = pair[third], k[third], other[third]
+        # A segment that meets a box comes within its circumradius of its centre: the cheap test first.
+        dx, dy = bx[pair] - ax[pair], by[pair] - ay[pair]
+        qx, qy = cx[other] - ax[pair], cy[other] - ay[pair]
+        s = np.clip((qx * dx + qy * dy) / np.maximum(dx * dx + dy * dy, 1e-12), 0.0, 1.0)
+        close = np.hypot(qx - s * dx, qy - s * dy) <= radius[k] + 1e-9
+        pair, k, other = pair[close], k[close], other[close]
         hit = segment_hits_box(ax[pair], ay[pair], bx[pair], by[pair], cx[other], cy[other],
                                snapshot.heading[other], half_l[k], half_w[k])
         blocked[pair[hit]] = True

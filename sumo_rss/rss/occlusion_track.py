@@ -46,12 +46,13 @@ class _Hidden:
     limit: np.ndarray  # [n, 2] ... of the reasonable speed [m/s]
     lat: np.ndarray  # [n, 2] ... of |lateral speed| [m/s]
     roles: np.ndarray  # [n, 2] object: the cars' roles in the episode (violations.csv)
+    closed: np.ndarray  # closed since the last step (dropped at the next one)
 
     @classmethod
     def empty(cls, n: int = 0) -> _Hidden:
         return cls(np.zeros(n, np.int64), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool),
                    np.full(n, np.nan), np.zeros(n, np.int64), np.full(n, np.nan), np.zeros((n, 2)),
-                   np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2), object))
+                   np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2), object), np.zeros(n, bool))
 
     def take(self, index: np.ndarray) -> _Hidden:
         return _Hidden(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -75,7 +76,7 @@ class OcclusionTracker:
         self._seen_from = np.zeros(0)  # [s] start of their current run of visibility (+inf: hidden now)
         self._hidden = _Hidden.empty()
         self._verdicts: dict[int, list[dict]] = {}  # serial → unreasonable-speed rows not yet given to an episode
-        self._judged = np.zeros(0, np.int64)  # serials of the episodes judged for reasonable speed
+        self._judged: set[int] = set()  # serials of the episodes judged for reasonable speed
         self._rows: dict[str, dict] = {}  # episode key → its occlusion.csv row
 
     @property
@@ -97,7 +98,8 @@ class OcclusionTracker:
         before = np.where(found, self._seen_from[pos], np.inf) if len(self._keys) else np.full(len(now), np.inf)
         seen_from = np.where(visible, np.where(np.isfinite(before), before, snapshot.time), np.inf)
         # Pairs not tested now keep their state for this step's compliance (their episodes end now).
-        kept = ~np.isin(self._keys, now)
+        kept = np.ones(len(self._keys), dtype=bool)
+        kept[pos[found]] = False
         merged_keys = np.concatenate([self._keys[kept], now])
         merged = np.concatenate([self._seen_from[kept], seen_from])
         order = np.argsort(merged_keys, kind="stable")
@@ -116,13 +118,15 @@ class OcclusionTracker:
         # Only the open episodes' pairs are kept (sorted, as the episodes are).
         self._keys, self._seen_from = self._keys[pos[known]], self._seen_from[pos[known]]
         h = self._hidden
+        if h.closed.any():
+            h = self._hidden = h.take(np.flatnonzero(~h.closed))
         new = hidden_now & ~find_sorted(h.serial, e.serial)[0]
         if np.any(new):
             fresh = _Hidden.empty(int(new.sum()))
             fresh.serial = e.serial[new]
             fresh.at_t_b = np.abs(e.t_b[new] - t) < TIME_EPS
             # One verdict per (joined) episode: a part that re-opens hidden after a judged one is not judged again.
-            fresh.first_run = fresh.at_t_b & ~np.isin(fresh.serial, self._judged)
+            fresh.first_run = fresh.at_t_b & ~np.array([s in self._judged for s in fresh.serial.tolist()], bool)
             fresh.roles = e.roles[new]
             merged = _Hidden(**{f.name: np.concatenate([getattr(h, f.name), getattr(fresh, f.name)])
                                 for f in fields(h)})
@@ -148,7 +152,7 @@ class OcclusionTracker:
             self._verdicts[int(h.serial[i])] = self._verdict_rows(
                 h, int(i), (e.a_id[k], e.b_id[k]), (e.a_class[k], e.b_class[k]), float(e.t_b[k]))
         h.first_run = h.first_run & ~ending
-        self._judged = np.union1d(self._judged, h.serial[ending])
+        self._judged.update(h.serial[ending].tolist())
         h.hidden = np.where(is_open, hid, h.hidden)
 
     def close(self, record: dict) -> list[dict]:
@@ -158,14 +162,13 @@ class OcclusionTracker:
             return []
         serial = int(record["serial"])
         h = self._hidden
-        found, pos = find_sorted(h.serial, np.array([serial], dtype=np.int64))
+        i = int(np.searchsorted(h.serial, serial))
         rows = self._verdicts.pop(serial, [])
-        if found[0]:
-            i = int(pos[0])
+        if i < len(h) and h.serial[i] == serial and not h.closed[i]:
             if h.first_run[i]:  # hidden from t_b to its end: judged over all of it
                 rows = self._verdict_rows(h, i, (record["vehicle_a"], record["vehicle_b"]),
                                           (record["class_a"], record["class_b"]), float(record["t_b_s"]))
-                self._judged = np.union1d(self._judged, h.serial[i:i + 1])
+                self._judged.add(serial)
             exposure = float(h.exposure[i])
             previous = self._rows.get(record["episode_key"])
             self._rows[record["episode_key"]] = {
@@ -173,7 +176,7 @@ class OcclusionTracker:
                 "exposure_a_s": exposure if np.isfinite(exposure) or previous is None else previous["exposure_a_s"],
                 "exposure_b_s": exposure if np.isfinite(exposure) or previous is None else previous["exposure_b_s"],
                 "occluded_at_t_b": bool(h.at_t_b[i]) if previous is None else previous["occluded_at_t_b"]}
-            self._hidden = h.take(np.flatnonzero(np.arange(len(h)) != i))
+            h.closed[i] = True
         for row in rows:
             row.update(run_id=record["run_id"], episode_key=record["episode_key"])
         blamed = {row["vehicle_id"] for row in rows}
