@@ -94,7 +94,7 @@ def test_a_leader_hit_from_behind_could_not_have_evaded(net):
     assert result.collisions.could_have_avoided.tolist() == [""]
 
 
-def _cut_in(net, occupied: bool):
+def _cut_in(net, occupied: bool, rule5: EvasiveParams = RULE5):
     """The keeper drives at 20 m/s in the centre of lane 1 (its vType 'evader' has a_lat = 1 m/s²); the cutter, its
     front bumper 1.76 m behind the keeper's, drifts in from lane 2 at 0.3 m/s, 2.0 m away side to side at 0 s.
     Across, d_min = 0.556 (the cutter: 0.4 + 0.5²/1.6) + 1.125 (the keeper: 0.5 + 1²/1.6) + 0.1 = 1.781 m: the pair
@@ -104,7 +104,7 @@ def _cut_in(net, occupied: bool):
     (15 m behind), both at 20 m/s in their lane's centre, 1.7 m from the keeper."""
     cars0 = [("lane0_ahead", 0, 503.5), ("lane0_behind", 0, 485.0)] if occupied else []
     auditor = Auditor(net, ParamResolver("ad_rss", vtype_overrides={"evader": {"lat_accel_max": 1.0}}),
-                      signal_rule=False, evasive=RULE5)
+                      signal_rule=False, evasive=rule5)
     offset, t = 0.3, 0.0
     for k in range(21):
         t = round(0.1 * k, 6)
@@ -160,3 +160,20 @@ def test_a_car_cut_into_could_not_have_evaded_into_an_occupied_lane(net):
     assert set(result.episodes.rule5_responsible) == {""}
     assert "evasive-effort" not in set(result.violations.constraint)
     assert result.collisions.could_have_avoided.tolist() == [""]
+
+
+@pytest.mark.parametrize("lookback_s, last_s, first_s", [(1.05, 1.1, 1.0), (0.85, np.nan, np.nan)])
+def test_a_collision_is_asked_over_the_steps_of_its_look_back_window(net, lookback_s, last_s, first_s):
+    """The free-lane cut-in (contact at 2.0 s; legal swerves at 0.9, 1.0 and 1.1 s) asked over the last 1.05 s only
+    (steps 0.95-2.0 s kept): the swerves of 1.0 and 1.1 s are found, the keeper followed neither and is rule-5
+    responsible from 1.0 s. Over the last 0.85 s (steps from 1.15 s on): none is found (at 1.2 s no swerve is legal any
+    more), no rule-5 car."""
+    episode, result = _cut_in(net, occupied=False, rule5=EvasiveParams(lookback_s=lookback_s, enabled=True))
+    assert episode.evasive_checked
+    rows = result.violations[result.violations.constraint == "evasive-effort"]
+    if np.isnan(last_s):
+        assert np.isnan(episode.evasive_last_s) and episode.rule5_responsible == "" and rows.empty
+        return
+    assert episode.evasive_last_s == pytest.approx(last_s) and episode.rule5_responsible == "keeper"
+    (row,) = rows.itertuples()
+    assert (row.t_start_s, row.t_end_s, row.bound) == (pytest.approx(first_s), pytest.approx(last_s), -4.0)

@@ -3,9 +3,8 @@ step needs, kept for the steps of a bounded look-back window so that the candida
 episodes that end in a collision, when they do (:mod:`.evasive_track`).
 
 A step's record holds the asked episodes (one responsible car c₂ so far, on a road), the state of every vehicle, the
-road pair rows that have an asked car c₁ in them and c₁'s other open episodes with the bounds it owed in them: a
-bounded slice of the step (traffic-sized), never the pairs of the whole run. :func:`legal_at` gives, from such a
-record, exactly what the auditor would have found at that step.
+step's vehicle pairs and open episodes with the bounds owed in them: traffic-sized, and only for the steps of the
+window. :func:`legal_at` gives, from such a record, exactly what evaluating the step as it came would have found.
 
 Units: m, s, m/s, m/s² (brakes positive magnitudes).
 """
@@ -20,6 +19,7 @@ from ..sim.snapshot import WorldSnapshot
 from .evasive import OPPOSITE_CODE, Candidates, PairRows, candidates, collides, dangerous_at_end, grid
 from .evasive import on_drivable_lanes, owed_to_others
 from .params import RssParamArrays
+from .responsibility import JudgedStep
 from .situations import FIRST_INTERSECTION_CODE, PairSituations, VehicleFrame
 from .sorted_keys import find_sorted
 
@@ -37,13 +37,14 @@ class StepMotion:
 
 @dataclass(frozen=True, eq=False)
 class AskedStep:
-    """The asked episodes of a step and what their legality needs (arrays copied: later steps cannot change them).
+    """The asked episodes of a step and what their legality needs.
 
-    Asked episodes (sorted by serial): serial, c1_side (0: c₁ is car a), c₁'s uid, the pair's key and c₁'s role.
-    Vehicles (snapshot rows): uid, speed, lat_speed, accel, lane, d, half_lon, half_lat and the RSS parameters.
-    Road pair rows with an asked c₁ in them (situation rows): a, b (vehicle rows), key, kind, a_is_rear, lon_gap,
-    a_is_left, lat_gap, wrong_way_a, wrong_way_b. The open episodes of the asked cars: serial, uids [·, 2], a_left,
-    owed_lat and the bounds of this step in them, accel_max, accel_min [·, 2] (NaN: none).
+    Asked episodes: serial, c1_side (0: c₁ is car a), c₁'s uid, the pair's key and c₁'s role. Vehicles (snapshot
+    rows, copied): uid, speed, lat_speed, accel, lane, d, half_lon, half_lat and the RSS parameters. The step's
+    vehicle pair rows (the situations' arrays, which the auditor makes anew every step and never changes): a, b
+    (vehicle rows), key, kind, a_is_rear, lon_gap, a_is_left, lat_gap, wrong_way_a, wrong_way_b (None: none). The
+    open episodes (copied): serial, uids [·, 2], a_left, owed_lat; and the responsibility tracker's bounds of the
+    step, ``judged`` (:class:`~.responsibility.JudgedStep`, made anew every step; None: none).
     """
 
     serial: np.ndarray
@@ -68,14 +69,13 @@ class AskedStep:
     lon_gap: np.ndarray
     a_is_left: np.ndarray
     lat_gap: np.ndarray
-    wrong_way_a: np.ndarray
-    wrong_way_b: np.ndarray
+    wrong_way_a: np.ndarray | None
+    wrong_way_b: np.ndarray | None
     ep_serial: np.ndarray
     ep_uids: np.ndarray
     ep_a_left: np.ndarray
     ep_owed_lat: np.ndarray
-    ep_accel_max: np.ndarray
-    ep_accel_min: np.ndarray
+    judged: JudgedStep | None
 
 
 def asked_step(snapshot: WorldSnapshot, uids: np.ndarray, frame: VehicleFrame, sit: PairSituations,
@@ -93,43 +93,15 @@ def asked_step(snapshot: WorldSnapshot, uids: np.ndarray, frame: VehicleFrame, s
     if not ask.size:
         return None
     c1_side = resp[ask, 0].astype(np.int8)  # c₂ is a → c₁ is b
-    c1_uid = np.where(c1_side == 0, e.uids[ask, 0], e.uids[ask, 1])
-    is_c1 = np.isin(uids, c1_uid)
-    rows = np.flatnonzero((is_c1[sit.a] | is_c1[sit.b]) & (sit.kind < FIRST_INTERSECTION_CODE))
-    mine = np.flatnonzero(np.isin(e.uids, c1_uid).any(axis=1))
-    accel_max = accel_min = np.full((mine.size, 2), np.nan)
-    judged = tracker.judged
-    if judged is not None and len(judged.serial):
-        by_serial = np.argsort(judged.serial)
-        found, pos = find_sorted(judged.serial[by_serial], e.serial[mine])
-        pos = by_serial[pos]
-        accel_max = np.where(found[:, None], judged.accel_max[pos], np.nan)
-        accel_min = np.where(found[:, None], judged.accel_min[pos], np.nan)
-    order = np.argsort(e.serial[ask])
-    ask, c1_side, c1_uid = ask[order], c1_side[order], c1_uid[order]
-    no_wrong = np.zeros(rows.size, dtype=bool)
     return AskedStep(
-        serial=e.serial[ask], c1_side=c1_side, c1_uid=c1_uid, pair_key=e.keys[ask],
-        role=e.roles[ask, c1_side], uid=uids.copy(), speed=snapshot.speed.copy(),
+        serial=e.serial[ask], c1_side=c1_side, c1_uid=np.where(c1_side == 0, e.uids[ask, 0], e.uids[ask, 1]),
+        pair_key=e.keys[ask], role=e.roles[ask, c1_side], uid=uids.copy(), speed=snapshot.speed.copy(),
         lat_speed=snapshot.lat_speed.copy(), accel=snapshot.accel.copy(), lane=frame.lane.copy(), d=frame.d.copy(),
         half_lon=frame.half_lon.copy(), half_lat=frame.half_lat.copy(), params=params.take(np.arange(len(uids))),
-        a=sit.a[rows], b=sit.b[rows], key=keys[rows], kind=sit.kind[rows], a_is_rear=sit.a_is_rear[rows],
-        lon_gap=sit.lon_gap[rows], a_is_left=sit.a_is_left[rows], lat_gap=sit.lat_gap[rows],
-        wrong_way_a=sit.wrong_way_a[rows] if sit.wrong_way_a is not None else no_wrong,
-        wrong_way_b=sit.wrong_way_b[rows] if sit.wrong_way_b is not None else no_wrong,
-        ep_serial=e.serial[mine], ep_uids=e.uids[mine], ep_a_left=e.a_left[mine], ep_owed_lat=e.owed_lat[mine],
-        ep_accel_max=accel_max, ep_accel_min=accel_min)
-
-
-def expand(values: np.ndarray, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(query index, index into ``values``) of every element of ``values`` equal to each query (any order)."""
-    order = np.argsort(values, kind="stable")
-    lo = np.searchsorted(values[order], queries, side="left")
-    hi = np.searchsorted(values[order], queries, side="right")
-    count = hi - lo
-    q = np.repeat(np.arange(len(queries)), count)
-    start = np.repeat(lo - np.cumsum(count) + count, count)
-    return q, order[np.arange(count.sum()) + start]
+        a=sit.a, b=sit.b, key=keys, kind=sit.kind, a_is_rear=sit.a_is_rear, lon_gap=sit.lon_gap,
+        a_is_left=sit.a_is_left, lat_gap=sit.lat_gap, wrong_way_a=sit.wrong_way_a, wrong_way_b=sit.wrong_way_b,
+        ep_serial=e.serial.copy(), ep_uids=e.uids.copy(), ep_a_left=e.a_left.copy(), ep_owed_lat=e.owed_lat.copy(),
+        judged=tracker.judged)
 
 
 def legal_at(s: AskedStep, k: int, network: RoadNetwork, horizon: float, tolerance: float
@@ -137,10 +109,11 @@ def legal_at(s: AskedStep, k: int, network: RoadNetwork, horizon: float, toleran
     """(the candidates, [1, 12] which are legal, c₁'s ρ [s]) of asked episode ``k`` of the step ``s`` (rss.md §8
     (a)-(d) with horizon ``horizon`` [s]); None when no candidate is legal (or the pair is no road row of the step).
     """
-    target = np.flatnonzero(s.key == s.pair_key[k])[:1]
+    c1 = np.flatnonzero(s.uid == s.c1_uid[k])
+    mine = np.flatnonzero(((s.a == c1[0]) | (s.b == c1[0])) & (s.kind < FIRST_INTERSECTION_CODE))  # c₁'s road rows
+    target = mine[s.key[mine] == s.pair_key[k]][:1]
     if not target.size:
         return None
-    c1 = np.flatnonzero(s.uid == s.c1_uid[k])
     # The cheap tests first, each while a legal candidate is left: the pair at t₀ + T (the candidates' end states
     # only), then on the time grid the drivable band, the contact with c₂ and with the other road users around c₁,
     # and the responses c₁ owes them.
@@ -158,9 +131,7 @@ def legal_at(s: AskedStep, k: int, network: RoadNetwork, horizon: float, toleran
     if not legal.any():
         return None
     # (d) every other road user around c₁ (within reach over the horizon) on its naive prediction.
-    _, j = expand(np.concatenate([s.a, s.b]), c1)
-    row = np.concatenate([np.arange(len(s.a))] * 2)[j]
-    row = row[row != target[0]]
+    row = mine[mine != target[0]]
     if row.size:
         others = _rows(s, row, np.repeat(c1, row.size), np.zeros(row.size, dtype=int))
         others = others.take(np.flatnonzero(~others.beyond_reach(cand)))
@@ -191,8 +162,9 @@ def _rows(s: AskedStep, rows: np.ndarray, c1: np.ndarray, q: np.ndarray) -> Pair
     dir_a = np.where(opposite & ~s.a_is_rear[rows], -1.0, 1.0)
     dir_b = np.where(opposite, -dir_a, 1.0)
     p1, po = s.params.take(c1), s.params.take(other)
-    w1 = np.where(c1_is_a, s.wrong_way_a[rows], s.wrong_way_b[rows])
-    wo = np.where(c1_is_a, s.wrong_way_b[rows], s.wrong_way_a[rows])
+    wrong = (s.wrong_way_a[rows], s.wrong_way_b[rows]) if s.wrong_way_a is not None else \
+        (np.zeros(len(rows), bool),) * 2
+    w1, wo = np.where(c1_is_a, wrong[0], wrong[1]), np.where(c1_is_a, wrong[1], wrong[0])
     return PairRows(
         q=q, dx=flip * b_minus_a, dy=flip * b_minus_a_lat, dir_c1=np.where(c1_is_a, dir_a, dir_b),
         dir_o=np.where(c1_is_a, dir_b, dir_a), half_lon=s.half_lon[a] + s.half_lon[b],
@@ -211,12 +183,18 @@ def _room(network: RoadNetwork, lane: np.ndarray, beside: np.ndarray) -> np.ndar
 def _owed(s: AskedStep, k: int, cand: Candidates, tolerance: float) -> np.ndarray:
     """[1, 12] legality (a) of asked episode ``k``'s candidates: the bounds of this step in c₁'s other open
     episodes."""
-    n = len(s.ep_serial)
-    _, j = expand(np.concatenate([s.ep_uids[:, 0], s.ep_uids[:, 1]]), s.c1_uid[k:k + 1])
-    episode, side = j % n, j // n
+    episode, side = np.nonzero(s.ep_uids == s.c1_uid[k])
     keep = s.ep_serial[episode] != s.serial[k]
     episode, side = episode[keep], side[keep]
+    accel_max, accel_min = np.full(episode.size, np.nan), np.full(episode.size, np.nan)
+    judged = s.judged
+    if judged is not None and len(judged.serial) and episode.size:
+        by_serial = np.argsort(judged.serial)
+        found, at = find_sorted(judged.serial[by_serial], s.ep_serial[episode])
+        at = by_serial[at]
+        accel_max = np.where(found, judged.accel_max[at, side], np.nan)
+        accel_min = np.where(found, judged.accel_min[at, side], np.nan)
     other_left = np.where(side == 0, ~s.ep_a_left[episode], s.ep_a_left[episode])
     towards = np.where(s.ep_owed_lat[episode], np.where(other_left, 1.0, -1.0), 0.0)
-    return owed_to_others(cand, np.zeros(1, dtype=int), np.zeros(episode.size, dtype=int),
-                          s.ep_accel_max[episode, side], s.ep_accel_min[episode, side], towards, tolerance)
+    return owed_to_others(cand, np.zeros(1, dtype=int), np.zeros(episode.size, dtype=int), accel_max, accel_min,
+                          towards, tolerance)
