@@ -13,6 +13,7 @@ one struct of arrays, updated with array operations.
 """
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
@@ -162,9 +163,9 @@ class OcclusionTracker:
             return []
         serial = int(record["serial"])
         h = self._hidden
-        i = int(np.searchsorted(h.serial, serial))
+        i = bisect_left(h.serial, serial)  # one look-up: cheaper than numpy's call overhead
         rows = self._verdicts.pop(serial, [])
-        if i < len(h) and h.serial[i] == serial and not h.closed[i]:
+        if i < h.serial.size and h.serial[i] == serial and not h.closed[i]:
             if h.first_run[i]:  # hidden from t_b to its end: judged over all of it
                 rows = self._verdict_rows(h, i, (record["vehicle_a"], record["vehicle_b"]),
                                           (record["class_a"], record["class_b"]), float(record["t_b_s"]))
