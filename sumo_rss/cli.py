@@ -223,8 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="a car owing braking at a junction must brake at b_min until stopped even if it stops "
                             "before the conflict area (ad_rss's reading; default: a car that stays out complied)")
     audit.add_argument("--evasive-effort", action="store_true",
-                       help="RSS rule 5: whether the car that complied could have evaded with a legal manoeuvre "
-                            "(episodes.csv evasive_*, rule5_responsible; off by default: docs/rss.md 'Rule 5')")
+                       help="RSS rule 5: whether the car that complied could have evaded a collision with a legal "
+                            "manoeuvre (episodes.csv evasive_*, rule5_responsible, collisions.csv could_have_avoided; "
+                            "off by default: docs/rss.md 'Rule 5')")
     audit.add_argument("--occluders", type=_file_list, metavar="FILE[,FILE...]",
                        help="RSS rule 4 (occlusion): SUMO additional file(s) whose <poly> elements of a type starting "
                             "with 'building' block the line of sight; responses are owed from when the cars can "
