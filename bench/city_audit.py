@@ -1,7 +1,8 @@
 """Offline audit of a real city run: by default the DRT city network of the eclipse-sumo package (8,109 edges, 21
 signals), driven by SUMO itself with random trips (fixed seed), written as an FCD with collisions and signal states
 (`--step-length 0.1 --lanechange.duration 3 --precision 6 --collision.check-junctions`). Point it at another run
-with --fcd and its files (--net, --vtypes, --collisions, --tls-states), e.g. MoST or Bologna's acosta.
+with --fcd and its files (--net, --vtypes, --collisions, --tls-states), e.g. Bologna's acosta, or with --realnet at
+the folder bench/build_most.py wrote the Monaco-size run into (recorded as city_audit_most).
 
 Figures: the network's load time cold (an empty road model cache) and from the cache, each in a fresh process; the
 FCD reader's speed alone over the plain file and over its gzip (MB/s of XML); and `sumo-rss audit` as a user runs it
@@ -25,6 +26,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import arguments, record  # noqa: E402
+from build_most import RUN_FILES  # noqa: E402
 
 from sumo_rss.road.model_cache import CACHE_ENV  # noqa: E402
 from sumo_rss.road.network import RoadNetwork  # noqa: E402
@@ -55,7 +57,10 @@ def _options(parser) -> None:
     parser.add_argument("--tls-states", type=Path, help="SUMO's signal states (SaveTLSStates) of the FCD's run")
     parser.add_argument("--seconds", type=float, default=300.0, help="simulated seconds of SUMO's run (default 300)")
     parser.add_argument("--period", type=float, default=0.4, help="random trips: one every PERIOD s (default 0.4)")
-    parser.add_argument("--label", help="record as city_audit_LABEL (default: city_audit for the DRT run)")
+    parser.add_argument("--realnet", type=Path, help="audit the MoST run in this folder (bench/build_most.py's "
+                        "most.net.xml, most.rou.xml, most.fcd.xml, most.collisions.xml, most.tls.xml) instead")
+    parser.add_argument("--label", help="record as city_audit_LABEL (default: city_audit for the DRT run, "
+                                        "city_audit_most for --realnet)")
 
 
 def simulate(net: Path, folder: Path, seconds: float, period: float) -> dict:
@@ -111,6 +116,15 @@ def _xml_bytes(fcd: Path) -> int:
 
 def main() -> None:
     options = arguments(__doc__, "city_audit.py", _options)
+    if options.realnet is not None:
+        missing = [name for name in RUN_FILES if not (options.realnet / name).is_file()]
+        if missing:
+            raise SystemExit(f"{options.realnet}: no MoST run ({', '.join(missing)} missing; bench/build_most.py "
+                             "writes it)")
+        options.net, options.vtypes, options.fcd, options.collisions, options.tls_states = (
+            options.realnet / name for name in RUN_FILES)
+        options.vtypes = str(options.vtypes)
+        options.label = options.label or "most"
     with tempfile.TemporaryDirectory(prefix="city_audit_") as tmp:
         folder = Path(tmp)
         cache = folder / "cache"

@@ -113,13 +113,14 @@ def collisions_without_an_episode(result: AuditResult, fcd: FcdTable) -> list[tu
 
 def blamed_cars_that_stopped_short(result: AuditResult, fcd: FcdTable) -> list[tuple[str, str]]:
     """(episode, car) of junction episodes whose responsible car stood still during it without ever being on a
-    junction's internal lane (it stopped before the conflict area: it gave the response the rule asks for)."""
+    junction's internal lane (it stopped before the conflict area: it gave the response the rule asks for). A
+    responsible person (not in the table's vehicles) is not a car: persons wait at the kerb, not on a lane."""
     junction = result.episodes[result.episodes.situation.str.startswith("intersection") &
                                (result.episodes.responsible != "none")]
     bad = []
     for e in junction.itertuples():
         for car, side in ((e.vehicle_a, "a"), (e.vehicle_b, "b")):
-            if e.responsible not in (side, "both"):
+            if e.responsible not in (side, "both") or car not in fcd.ids:
                 continue
             rows = fcd.car(car, e.t_b_s, e.t_end_s)
             if not rows.lane.str.startswith(":").any() and (rows.speed < STOPPED).any():

@@ -1,10 +1,10 @@
 """The real-network invariants (real_network_checks.py) on a Monaco-size run: MoST's 18,732-edge net, 300 s of
-random trips, audited from SUMO's own FCD, collision and signal-state outputs.
+random trips (500 cars, 300 pedestrians), audited from SUMO's own FCD, collision and signal-state outputs.
 
 Runs only with SUMO_RSS_ACCEPTANCE=1 (``make acceptance``) and reads the run from ``$SUMO_RSS_REALNETS`` (default
-/work/realnets: most.net.xml, most.rou.xml, most.fcd.xml, most.collisions.xml, most.tls.xml, made as its build.sh
-says, with --lanechange.duration 3 --precision 6 --collision.check-junctions); skips, naming what is missing, where
-it is not there. Nothing of it is in the repository (fetched data is never committed).
+/work/realnets: most.net.xml, most.rou.xml, most.fcd.xml, most.collisions.xml, most.tls.xml, built from a MoST
+checkout by ``python bench/build_most.py MOST_CHECKOUT FOLDER``, which says how); skips, naming what is missing,
+where it is not there. Nothing of it is in the repository (fetched data is never committed).
 """
 from __future__ import annotations
 
@@ -30,7 +30,8 @@ pytestmark = pytest.mark.skipif(os.environ.get("SUMO_RSS_ACCEPTANCE") != "1",
 def most():
     missing = [name for name in FILES if not (FOLDER / name).is_file()]
     if missing:
-        pytest.skip(f"{FOLDER}: no MoST run ({', '.join(missing)} missing; set SUMO_RSS_REALNETS to its folder)")
+        pytest.skip(f"{FOLDER}: no MoST run ({', '.join(missing)} missing; bench/build_most.py builds it; set "
+                    "SUMO_RSS_REALNETS to its folder)")
     net_file, routes, fcd, collisions, tls = (FOLDER / name for name in FILES)
     vehicles = read_vehicle_info(routes, net_file)
     net = RoadNetwork.from_file(net_file)

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-PROJECT_CHUNK = 1 << 18  # points x segments searched at once by LaneShapes.project (bounds its temporary memory)
-CHUNK_COST = 4096  # [segments] searching this many costs about as much as one more numpy pass over a chunk
+from .link_pairs import expand_ranges
+
+PROJECT_CHUNK = 1 << 18  # candidate segments searched at once by LaneShapes.project (bounds its temporary memory)
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,20 +38,23 @@ class LaneShapes:
         count = np.array([len(p) for p in polylines], dtype=int)
         if np.any(count < 2):
             raise ValueError("every lane shape needs at least two points")
+        # Lane by lane into the padded arrays (padding repeats each lane's last value: zero-length segments), so
+        # that no temporary is as large as the padded 3-D shapes (MoST: 23,794 lanes, the longest of 233 points).
         width = int(count.max())
-        points = np.zeros((len(polylines), width, 3))
+        points = np.empty((len(polylines), width, 2))
+        cumulative = np.empty((len(polylines), width))
+        positions = cumulative if lengths is None else np.empty((len(polylines), width))
         for k, poly in enumerate(polylines):
             poly = np.asarray(poly, dtype=float)
-            points[k, : len(poly), : poly.shape[1]] = poly
-            points[k, len(poly):] = points[k, len(poly) - 1]  # padding repeats the end point: zero-length segments
-        cumulative = _cumulative(points[..., :2])
-        if lengths is None:
-            return cls(points[..., :2], count, cumulative, cumulative)
-        along_3d = _cumulative(points)
-        total_3d = along_3d[:, -1:]
-        positions = np.where(total_3d > 0.0, along_3d * np.asarray(lengths, dtype=float)[:, None] /
-                             np.where(total_3d > 0.0, total_3d, 1.0), cumulative)
-        return cls(points[..., :2], count, cumulative, positions)
+            points[k, :len(poly)], points[k, len(poly):] = poly[:, :2], poly[-1, :2]
+            along = _cumulative(poly[None, :, :2])[0]
+            cumulative[k, :len(poly)], cumulative[k, len(poly):] = along, along[-1]
+            if lengths is not None:
+                along_3d = _cumulative(poly[None])[0]
+                total_3d = along_3d[-1]
+                pos = along_3d * float(lengths[k]) / total_3d if total_3d > 0.0 else along
+                positions[k, :len(poly)], positions[k, len(poly):] = pos, pos[-1]
+        return cls(points, count, cumulative, positions)
 
     def lane_pos(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
         """SUMO lane positions [m] of the points ``s`` shape metres along lanes ``lane`` (beyond a lane's ends at
@@ -73,52 +77,59 @@ class LaneShapes:
         lane = np.asarray(lane, dtype=int)
         x, y = np.broadcast_to(np.asarray(x, dtype=float), lane.shape), np.broadcast_to(np.asarray(y, dtype=float),
                                                                                     lane.shape)
+        if not lane.size:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
         if s_hint is not None:
-            seg_idx = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
-            return self._project(lane, x, y, seg_idx)
-        # Every segment of each point's lane, in chunks of points whose lanes have about as many segments (the
-        # padding of the longest lane's points would otherwise be searched for every point).
+            near = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
+            return self._project(lane, x, y, np.repeat(np.arange(len(lane)), near.shape[1]), near.ravel(),
+                                 near.shape[1])
+        # Every segment of each point's lane (no padding searched), in parts of about PROJECT_CHUNK segments (bounds
+        # the temporary memory; a lane longer than that is one part).
         n_seg = self.count[lane] - 1
-        widest = int(n_seg.max(initial=1))
-        if len(lane) * widest <= CHUNK_COST:  # too little to be worth a split
-            return self._project(lane, x, y, np.arange(widest)[None, :])
-        order = np.argsort(n_seg, kind="stable")
-        bounds = _chunks(n_seg[order], PROJECT_CHUNK)
-        if len(bounds) == 2:
-            return self._project(lane, x, y, np.arange(widest)[None, :])
+        ends = np.cumsum(n_seg)
+        parts = [0]
+        while parts[-1] < len(lane):
+            done = ends[parts[-1] - 1] if parts[-1] else 0
+            parts.append(max(int(np.searchsorted(ends, done + PROJECT_CHUNK, side="right")), parts[-1] + 1))
         out = tuple(np.empty(lane.shape) for _ in range(3))
-        for start, end in zip(bounds[:-1], bounds[1:]):
-            rows = order[start:end]
-            for full, part in zip(out, self._project(lane[rows], x[rows], y[rows],
-                                                     np.arange(int(n_seg[rows[-1]]))[None, :])):
+        for first, stop in zip(parts[:-1], parts[1:]):
+            rows = slice(first, stop)
+            owner, segment = expand_ranges(np.zeros(stop - first, dtype=int), n_seg[rows])
+            for full, part in zip(out, self._project(lane[rows], x[rows], y[rows], owner, segment)):
                 full[rows] = part
         return out
 
-    def _project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, seg_idx: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`project` onto the segments ``seg_idx`` ([n, k], or [1, k] for every point) of each point's lane,
-        those beyond its ends left out."""
-        n_seg = self.count[lane] - 1  # [n]
-        seg_idx = np.broadcast_to(seg_idx, (lane.shape[0], seg_idx.shape[1]))
-        real = (seg_idx >= 0) & (seg_idx < n_seg[:, None])
-        seg_idx = np.clip(seg_idx, 0, self.points.shape[1] - 2)
-        p = np.stack([x, y], axis=-1)[:, None, :]
-        a = self.points[lane[:, None], seg_idx]  # [n, k, 2] segment starts
-        seg = self.points[lane[:, None], seg_idx + 1] - a
-        length2 = np.einsum("nkj,nkj->nk", seg, seg)
+    def _project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, owner: np.ndarray, segment: np.ndarray,
+                 width: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` onto candidate segments: ``segment[c]`` of the lane of point ``owner[c]`` (ascending;
+        every point has at least one; ``width``: as many for every point); candidates beyond a lane's ends are
+        left out, and of the others each point takes the nearest (the first of equals)."""
+        on = lane[owner]
+        n_seg = self.count[on] - 1
+        real = (segment >= 0) & (segment < n_seg)
+        segment = np.clip(segment, 0, self.points.shape[1] - 2)
+        p = np.stack([x, y], axis=-1)
+        q = p[owner]
+        a = self.points[on, segment]  # [c, 2] segment starts
+        seg = self.points[on, segment + 1] - a
+        length2 = np.einsum("cj,cj->c", seg, seg)
         real &= length2 > 0.0
-        t = np.einsum("nkj,nkj->nk", p - a, seg) / np.where(real, length2, 1.0)
-        lo = np.where(seg_idx == 0, -np.inf, 0.0)
-        hi = np.where(seg_idx == n_seg[:, None] - 1, np.inf, 1.0)
+        t = np.einsum("cj,cj->c", q - a, seg) / np.where(real, length2, 1.0)
+        lo = np.where(segment == 0, -np.inf, 0.0)
+        hi = np.where(segment == n_seg - 1, np.inf, 1.0)
         t = np.clip(t, lo, hi)
-        foot = a + t[..., None] * seg
-        dist2 = np.where(real, np.einsum("nkj,nkj->nk", p - foot, p - foot), np.inf)
-        best = np.argmin(dist2, axis=1)
-        rows = np.arange(lane.shape[0])
-        seg_b, a_b, t_b = seg[rows, best], a[rows, best], t[rows, best]
-        seg_len = np.sqrt(length2[rows, best])
-        s = self.cumulative[lane, seg_idx[rows, best]] + t_b * seg_len
-        rel = p[:, 0, :] - a_b
+        foot = a + t[:, None] * seg
+        dist2 = np.where(real, np.einsum("cj,cj->c", q - foot, q - foot), np.inf)
+        if width is not None:
+            best = np.arange(len(lane)) * width + np.argmin(dist2.reshape(len(lane), width), axis=1)
+        else:
+            first = np.searchsorted(owner, np.arange(len(lane)))
+            nearest = np.flatnonzero(dist2 == np.minimum.reduceat(dist2, first)[owner])
+            best = nearest[np.searchsorted(owner[nearest], np.arange(len(lane)))]
+        seg_b, a_b, t_b = seg[best], a[best], t[best]
+        seg_len = np.sqrt(length2[best])
+        s = self.cumulative[lane, segment[best]] + t_b * seg_len
+        rel = p - a_b
         d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
         return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])
 
@@ -146,30 +157,9 @@ class LaneShapes:
     def _segment_at(self, lane: np.ndarray, s: Any) -> np.ndarray:
         """Index of the segment of lanes ``lane`` (indices) that holds the distances ``s`` [m] along them (the first
         or last one beyond a lane's ends)."""
-        k = (self.cumulative[lane] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
+        widest = int(self.count[lane].max(initial=2))  # the padding beyond changes no index
+        k = (self.cumulative[lane, :widest] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
         return np.clip(k, 0, self.count[lane] - 2)
-
-
-def _chunks(n_seg: np.ndarray, budget: int) -> list[int]:
-    """Boundaries of consecutive chunks of ``n_seg`` (ascending segment counts), searched at once by
-    :meth:`LaneShapes.project` with as many segments as their last point's lane has: a new chunk begins where
-    widening the current one to a point's count would search more padding than a chunk's own cost is worth
-    (CHUNK_COST segments), or the chunk would exceed ``budget`` points x segments."""
-    bounds, points, width = [0], 0, 0
-    values, first, counts = np.unique(n_seg, return_index=True, return_counts=True)
-    for value, start, count in zip(values.tolist(), first.tolist(), counts.tolist()):
-        if points and (points * (value - width) > CHUNK_COST or (points + count) * value > budget):
-            bounds.append(start)
-            points = 0
-        # A run of one count too long for the budget alone is split.
-        while points + count > max(budget // value, 1):
-            take = max(budget // value - points, 1)
-            start, count, points = start + take, count - take, 0
-            bounds.append(start)
-        width, points = value, points + count
-    if bounds[-1] != len(n_seg):
-        bounds.append(len(n_seg))
-    return bounds
 
 
 def _cumulative(points: np.ndarray) -> np.ndarray:
@@ -183,7 +173,8 @@ def _along(source: np.ndarray, target: np.ndarray, count: np.ndarray, lane: np.n
     (``target``): piecewise linear between the lanes' points; beyond a lane's ends at the rate of its first or
     last segment (of the whole lane where that segment has no length in ``source``)."""
     value = np.asarray(value, dtype=float)
-    src, dst = source[lane], target[lane]
+    widest = int(count[lane].max(initial=2))  # the padding beyond changes no index
+    src, dst = source[lane, :widest], target[lane, :widest]
     last = count[lane] - 1
     k = np.clip((src <= value[:, None]).sum(axis=1) - 1, 0, last - 1)
     rows = np.arange(len(lane))

@@ -103,7 +103,7 @@ def _load(entry: Path, header: dict) -> object | None:
     try:
         head_end = data.index(b"\n", len(MAGIC))
         found = json.loads(data[len(MAGIC):head_end])
-        payload = data[head_end + 1:]
+        payload = memoryview(data)[head_end + 1:]  # not a copy: a city's entry is a few hundred MB
         if not data.startswith(MAGIC) or found.pop("payload_sha256") != hashlib.sha256(payload).hexdigest() or \
                 found != header:
             return None
@@ -120,7 +120,8 @@ def _store(entry: Path, header: dict, model: object) -> None:
     try:
         entry.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=entry.parent, prefix=f".{entry.name}.", delete=False) as tmp:
-            tmp.write(MAGIC + head + b"\n" + payload)
+            tmp.write(MAGIC + head + b"\n")
+            tmp.write(payload)
         os.replace(tmp.name, entry)
     except OSError as exc:
         try:

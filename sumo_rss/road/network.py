@@ -153,6 +153,11 @@ class RoadNetwork:
         """Indices of edge ids (e.g. a route); raises ``KeyError`` for an unknown id."""
         return np.array([self._edge_lookup[e] for e in edge_ids], dtype=int)
 
+    def find_edges(self, edge_ids: np.ndarray) -> np.ndarray:
+        """Indices of ``edge_ids`` (vectorised), -1 for an id not in the network."""
+        names = edge_ids.tolist() if isinstance(edge_ids, np.ndarray) else list(edge_ids)
+        return np.fromiter((self._edge_lookup.get(str(e), -1) for e in names), dtype=np.int64, count=len(names))
+
     def lane_indices(self, lane_ids: np.ndarray) -> np.ndarray:
         """Indices of ``lane_ids`` (vectorised); raises :class:`UnknownLaneError` naming the unknown ids."""
         names = lane_ids.tolist() if isinstance(lane_ids, np.ndarray) else list(lane_ids)

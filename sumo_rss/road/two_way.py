@@ -19,7 +19,7 @@ from .frenet import LaneShapes
 SAMPLES = 16  # points of a lane's centre line sampled to compare it with a lane of the other direction
 BESIDE_SHARE = 0.5  # the share of both edges' lengths along which they must run side by side
 ANTIPARALLEL_COS = -0.5  # two lanes run against each other where their headings are more than 120° apart
-CHUNK_POINTS = 2048  # points projected at once (memory: points x shape points)
+CHUNK_POINTS = 2048  # points sampled and projected at once (memory: points x shape points)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,12 +91,12 @@ def _compare(lane: np.ndarray, other: np.ndarray, shapes: LaneShapes,
     rows = np.repeat(np.arange(n), SAMPLES)
     lk, lj = lane[rows], other[rows]
     s_j = np.tile(fraction, n) * shapes.cumulative[lj, shapes.count[lj] - 1]
-    x, y = shapes.point_at(lj, s_j, np.zeros(len(lj)))
-    heading_j = shapes.heading_at(lj, s_j)
-    s, d, heading_k = np.empty(len(lk)), np.empty(len(lk)), np.empty(len(lk))
+    s, d, heading_k, heading_j = (np.empty(len(lk)) for _ in range(4))
     for c in range(0, len(lk), CHUNK_POINTS):
         part = slice(c, c + CHUNK_POINTS)
-        s[part], d[part], heading_k[part] = shapes.project(lk[part], x[part], y[part])
+        x, y = shapes.point_at(lj[part], s_j[part], np.zeros(len(lj[part])))
+        heading_j[part] = shapes.heading_at(lj[part], s_j[part])
+        s[part], d[part], heading_k[part] = shapes.project(lk[part], x, y)
     reach = 0.5 * (lane_width[lk] + lane_width[lj]) + np.maximum(lane_width[lk], lane_width[lj])
     inside = (s >= 0.0) & (s <= shapes.cumulative[lk, shapes.count[lk] - 1])
     close = inside & (np.abs(d) <= reach) & (np.cos(heading_j - heading_k) < ANTIPARALLEL_COS)

@@ -34,9 +34,8 @@ def jaywalking_situations(persons: PersonSnapshot, on_road: np.ndarray, frame: V
     """Every (vehicle, person on its edge's road) pair whose wedge meets the vehicle's lane strip ahead of the
     vehicle's rear (rows: vehicles, then persons from ``vehicles`` on; ``params`` over both). ``on_road``: the
     persons walking on a vehicle lane; ``ids``, ``length`` [m]: the vehicles'."""
-    edge_of = {e: k for k, e in enumerate(network.edge_ids.tolist())}
     walkers = np.flatnonzero(on_road)
-    p_edge = np.array([edge_of.get(str(e), -1) for e in persons.edge_id[walkers]], dtype=int)
+    p_edge = network.find_edges(persons.edge_id[walkers])
     by_edge = np.argsort(frame.edge, kind="stable")
     pair, hit = expand_ranges(np.searchsorted(frame.edge[by_edge], p_edge, side="left"),
                               np.searchsorted(frame.edge[by_edge], p_edge, side="right"))

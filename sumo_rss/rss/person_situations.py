@@ -32,6 +32,7 @@ from .jaywalking import AREA_ID as JAYWALK_AREA, jaywalking_situations
 from .params import PARAM_NAMES, RssParamArrays
 from .person_pairs import Side, vehicle_person_situations
 from .situations import PairSituations, VehicleFrame
+from .sorted_keys import find_sorted
 
 # [rad] a person at a crossing's end who faces within this of the crossing's direction may step onto it (SUMO's
 # persons turn towards a crossing on the walking area before they step on; one walking along the kerb or towards
@@ -102,7 +103,7 @@ class PersonAudit:
                          np.concatenate([snapshot.vclass, np.full(len(persons), PERSON_CLASS)]),
                          np.concatenate([snapshot.accel, accel]), np.concatenate([snapshot.speed, persons.speed]),
                          _stacked(params, person_params), len(snapshot),
-                         ~np.isin(persons.edge_id, self.crossings.walkway_edges))
+                         ~find_sorted(self.crossings.walkway_edges, persons.edge_id.astype(str))[0])
 
     def _accelerations(self, time: float, persons: PersonSnapshot) -> np.ndarray:
         """[m/s²] each person's speed change over the last SPEED_WINDOW_S (over the steps it was seen in, 0 for a

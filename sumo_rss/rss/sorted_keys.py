@@ -1,4 +1,5 @@
-"""Look-ups of integer keys (pair keys, episode serials, vehicle uids) in sorted key arrays, vectorised."""
+"""Look-ups of keys (pair keys, episode serials, vehicle uids; also strings, e.g. edge ids) in sorted key arrays,
+vectorised."""
 from __future__ import annotations
 
 import numpy as np
