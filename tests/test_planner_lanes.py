@@ -33,15 +33,17 @@ def test_chains_follow_the_route_through_junctions():
 
 def test_the_reference_speed_is_the_speed_from_which_the_ego_can_still_slow_down_to_what_lies_ahead():
     """epsilon.md §2.7 scans from the ego's position; here every lower speed ahead (a bend's √(3/|κ|), a lane's
-    limit where it starts) is an envelope √(v² + 2·1 m/s²·distance). S_in_1 (13.89 m/s, 289.6 m) leads into the
+    limit where it starts) is an envelope √(v² + 2·1.67 m/s²·distance), at epsilon.md §3.1's comfortable deceleration. S_in_1 (13.89 m/s, 289.6 m) leads into the
     left turn's junction lanes (9.26 m/s); the sharpest bend is κ = 0.1109 1/m at s = 299.28 (SUMO's middle three
     samples of the 90° turn in 19.3 m): 5.20 m/s there. The release took floor(min(...)) over v²/1.67 ahead, so the
     ego cruised at 13 m/s and slowed to 3 m/s from 115 m before the turn."""
     net = _net("intersection_tls")
     chains = lane_chains(net, int(net.lane_indices(["S_in_1"])[0]), net.edge_indices(["S_in", "W_out"]))
     assert chains.reference_speed(CURRENT, 50.0, desired=13.89) == 13.89
-    # 20 m before the line: the bend's √(5.20² + 2·29.28) = 9.25 m/s, below the junction lane's √(9.26² + 2·19.6).
-    assert chains.reference_speed(CURRENT, 270.0, desired=13.89) == pytest.approx(9.25, abs=0.01)
+    # 20 m before the line: the turn's first bend sample (κ = 0.0818 1/m at s = 294.9: 6.06 m/s) gives
+    # √(6.06² + 2·1.67·24.9) = 10.95 m/s, below its sharpest one's √(5.20² + 2·1.67·29.28) = 11.17 and the junction
+    # lane's √(9.26² + 2·1.67·19.6) = 12.30.
+    assert chains.reference_speed(CURRENT, 270.0, desired=13.89) == pytest.approx(10.95, abs=0.01)
     assert chains.reference_speed(CURRENT, 300.0, desired=13.89) == pytest.approx(5.20, abs=0.01)
     assert chains.reference_speed(CURRENT, 310.0, desired=13.89) == 13.89  # out of the turn, on W_out_1
     # A window's cap (the yield rule's crossing speeds): the slowest speed over it, the bend's within 20 m of 280.

@@ -58,6 +58,11 @@ MPDM_SPEED_STEP = 5.0  # [m/s] MPDM's speed command is within this of the ego's 
 # [m/s²] the ego's acceleration: epsilon.md §3.1's ego has 1.0 (the release's highway demo), half of what its agents,
 # its evasive mode and the MPDM baseline use; with it the ego took ~12 s from 10 to 13 m/s (docs/planner.md)
 EGO_ACCEL = 2.0
+# [s] the reference speed is also read this far ahead of the ego's front bumper at its speed (the lower reading
+# holds): a rollout holds its desired speed for the whole horizon and the IDM slows to a lower one with a lag, so read
+# at the centre the ego reached intersection_tls's 9.26 m/s junction lane at 12.3 m/s with the 1.67 m/s² envelope
+# (docs/planner.md "Junctions")
+REFERENCE_PREVIEW = 1.0
 EGO_SIM = SimSettings(ego_idm=IdmParams(accel=EGO_ACCEL), ego_limits=VehicleLimits(max_accel=EGO_ACCEL))
 
 
@@ -153,7 +158,7 @@ class EpsilonPlanner:
         key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
-        v_ref = frame.chains.reference_speed(CURRENT, float(vehicles.s[0]), cfg.desired_speed)
+        v_ref = _reference_speed(frame, vehicles, v_ego, cfg.desired_speed)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
@@ -397,6 +402,16 @@ def _learned_belief(network: RoadNetwork, period: float) -> LearnedBelief | None
 
     estimator = load_estimator()
     return LearnedBelief(network, estimator, period) if estimator is not None else None
+
+
+def _reference_speed(frame: RoadFrame, vehicles: Vehicles, v_ego: float, desired: float) -> float:
+    """[m/s] The ego's reference speed (:meth:`.lanes.LaneChains.reference_speed`): read at its front bumper (SUMO
+    holds a car to the limit of the lane its front bumper is on) and REFERENCE_PREVIEW s at ``v_ego`` [m/s] ahead of
+    it, the lower of the two (the preview brings lower speeds ahead nearer, never a higher limit: the ramp's 22.22 m/s
+    holds until the bumper is on the acceleration lane)."""
+    front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
+    return min(frame.chains.reference_speed(CURRENT, front, desired),
+               frame.chains.reference_speed(CURRENT, front + REFERENCE_PREVIEW * v_ego, desired))
 
 
 def _speed_reach(v: float) -> float:

@@ -14,7 +14,9 @@ from . import route_lanes
 # [m/s²] lateral acceleration of the reference speed in bends (epsilon.md §2.7 has 1.2, the release's highway demo
 # value: a left turn at 3 m/s where SUMO's cars take it at 9.26; docs/planner.md "Not timid")
 CURVE_LAT_ACCEL = 3.0
-REFERENCE_BRAKE = 1.0  # [m/s²] the reference speed falls towards a lower speed ahead as braking at this would
+# [m/s²] the reference speed falls towards a lower speed ahead as braking at this would: epsilon.md §3.1's comfortable
+# deceleration b (the release's reference-speed window v²/1.67); 1.0 slowed the ego for a turn ~1 s too early
+REFERENCE_BRAKE = 1.67
 RIGHT, CURRENT, LEFT = 0, 1, 2  # chain order
 CONSISTENT_LANES = 20  # lanes searched along the successors for a lane-change context (epsilon.md §2.7)
 
