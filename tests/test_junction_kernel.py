@@ -14,9 +14,10 @@ from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.link_pairs import LinkBlocks, LinkPairs
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.intersection import (JUNCTIONS_AHEAD, KIND_SAME, KIND_SIGNAL, KIND_YIELD, PRIORITY_B, PRIORITY_SAME,
-                                       intersection_safety, junction_entries, next_route_edge)
+                                       intersection_safety, junction_entries, next_route_edge,
+                                       param_table)
 from sumo_rss.rss.junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs
-from sumo_rss.rss.params import PARAM_NAMES, PRESETS, RssParamArrays, RssParams, preset_params
+from sumo_rss.rss.params import PRESETS, RssParamArrays, RssParams, preset_params
 from sumo_rss.rss.situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP
 from sumo_runs import DATA
 
@@ -110,7 +111,7 @@ def test_the_kernel_gives_the_numpy_formulas_pairs(seed):
     pairs = j["pairs"]
     floats, ints = junction_pairs(rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, j["start"],
                                   j["end"], j["static"], j["area"], j["crossing"], j["tls_index"], j["ranks"], length,
-                                  v, np.column_stack([getattr(p, name) for name in PARAM_NAMES]))
+                                  v, param_table(p))
     want_floats, want_ints = _numpy_pairs(j, rows, links, pos, id_rank, length, v, p)
     assert ints.shape[1] > 20  # the junction gives pairs
     assert np.array_equal(ints, want_ints)
@@ -183,5 +184,8 @@ def test_entries_are_each_vehicles_links_and_those_further_along_its_route(fragm
         want = _reference_entries(lane, lane_pos, next_edge, routes, levels, horizon, junctions, network)
         assert list(zip(rows.tolist(), links.tolist())) == [(i, k) for i, k, _ in want]
         assert np.array_equal(pos, np.array([p for _, _, p in want]))
+        # Without next_edge the kernel finds it on the routes itself (as the auditor calls it): the same entries.
+        found = junction_entries(lane, lane_pos, None, network, junctions, horizon, levels, routes)
+        assert all(np.array_equal(x, y) for x, y in zip(found, (rows, links, pos)))
         if levels:
             assert len(rows) > len(junction_entries(lane, lane_pos, next_edge, network, junctions, horizon)[0]) + 50

@@ -30,7 +30,8 @@ def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, 
     """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path [m],
     negative before its start). A vehicle on an internal lane (``lane``, its position ``lane_pos`` [m]) is on that
     lane's link; one on an approach lane within ``horizon`` [m] of its end takes the link to its route's next edge
-    ``next_edge`` (every link from its lane where that is unknown, -1). Then, up to ``levels`` times, the links at
+    ``next_edge`` (every link from its lane where that is unknown, -1; an empty ``next_edge``: the edge after the
+    lane's on the vehicle's ``route_edges``, as :func:`~.intersection.next_route_edge` gives it). Then, up to ``levels`` times, the links at
     the next junction along each entry's route (``route_edges`` [n, k], -1 padded), from the lane its link leads
     into, where the route is known and the link starts within ``horizon`` of the front bumper: where edges between
     junctions are short (a roundabout's 20 m) a car is in its conflicts at the next junction before it reaches the
@@ -47,9 +48,12 @@ def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, 
             m += 1
     for i in range(n):
         to_end = lane_length[lane[i]] - lane_pos[i]
+        if to_end > horizon:
+            continue
+        after = next_edge[i] if next_edge.size else _next_on_route(route_edges, i, lane_edge[lane[i]])
         for c in range(width):
             k = lane_links[lane[i], c]
-            if k >= 0 and to_end <= horizon and (next_edge[i] < 0 or link_to_edge[k] == next_edge[i]):
+            if k >= 0 and (after < 0 or link_to_edge[k] == after):
                 rows[m], links[m], pos[m] = i, k, -to_end
                 m += 1
     first = 0
