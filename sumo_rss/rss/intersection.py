@@ -192,28 +192,26 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     unknown), or already on the link's internal lanes."""
     rows, links, pos = junction_entries(frame.lane, frame.lane_pos, None, network, junctions, horizon,
                                         JUNCTIONS_AHEAD, frame.route_edges)
-    from .junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs  # numba: only where junctions are
+    from .junction_kernel import junction_pairs  # numba: only where junctions are
 
     table, pairs = junctions.conflict_pairs, junctions.conflict_pairs.pairs
     id_rank = np.empty(len(snapshot.ids), dtype=np.int64)
     id_rank[np.argsort(snapshot.ids, kind="stable")] = np.arange(len(snapshot.ids))
-    floats, ints = junction_pairs(
+    floats, ints, flags, codes = junction_pairs(
         rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, table.start, table.end,
         table.static_priority, table.area, junctions.area_crossing, junctions.link_tls_index,
         _signal_ranks(junctions, snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
         param_table(frame.params))
-    if not ints.shape[1]:  # most steps of a city: nothing to evaluate
-        return _no_situations()
-    f, c = dict(zip(FLOAT_COLUMNS, floats)), dict(zip(INT_COLUMNS, ints))
     n = ints.shape[1]
-    nan = np.full(n, np.nan)
+    if not n:  # most steps of a city: nothing to evaluate
+        return _no_situations()
+    (lon_gap, v_lon_a, v_lon_b, lon_d_min, enter_a, enter_b), (a, b, kind, pair) = floats, ints
+    nan, no = np.full(n, np.nan), np.zeros(n, dtype=bool)
     return PairSituations(
-        a=c["a"], b=c["b"], kind=c["kind"], a_is_rear=c["a_is_rear"].astype(bool), a_is_left=np.zeros(n, dtype=bool),
-        lon_gap=f["lon_gap"], lat_gap=nan, v_lon_a=f["v_lon_a"], v_lon_b=f["v_lon_b"], v_lat_a=np.zeros(n),
-        v_lat_b=np.zeros(n), lon_d_min=f["lon_d_min"], lat_d_min=nan, lon_safe=c["safe"].astype(bool),
-        lat_safe=np.zeros(n, dtype=bool), rules=c["rules"].astype(np.int8), priority=c["priority"].astype(np.int8),
-        in_front=c["in_front"].astype(np.int8), area=table.area_id[c["pair"]], enter_a=f["enter_a"],
-        enter_b=f["enter_b"])
+        a=a, b=b, kind=kind, a_is_rear=flags[0], a_is_left=no, lon_gap=lon_gap, lat_gap=nan, v_lon_a=v_lon_a,
+        v_lon_b=v_lon_b, v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=lon_d_min, lat_d_min=nan,
+        lon_safe=flags[1], lat_safe=no, rules=codes[0], priority=codes[1], in_front=codes[2],
+        area=table.area_id[pair], enter_a=enter_a, enter_b=enter_b)
 
 
 def param_table(params: RssParamArrays) -> np.ndarray:
