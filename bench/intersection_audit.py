@@ -1,12 +1,12 @@
-"""Audit speed at a signalised junction: intersection_tls (300 simulated s) is simulated once and its snapshots
-kept; then they are audited (every pair, road and junction situations; no signal rule, no collisions), timed on
-their own. Figures: pair-steps/s of the audit, real-time factors of the simulation alone, the audit alone and the
-two timings added (``sim_plus_audit_rtf``: not one co-simulation), ms of audit per step, and how many of the
-pair-steps were junction situations (``junction_pair_steps``: pairs in a conflict area, one per pair and step).
-The junction situations alone (``intersection_situations`` over the same snapshots, their vehicle frames built
-untimed; CPU time): ms per step and situation rows (one per pair and conflict area) per second
-(``junction_rows_per_s``). The junction kernel's first call in a fresh process (``jit_compile_s``: an empty numba
-cache, as in a fresh clone; ``jit_cached_s``: from the cache it left), each with numba's import.
+"""Audit speed at a signalised junction: intersection_tls (300 simulated s) is simulated once and its snapshots kept;
+then they are audited (every pair, road and junction situations; no signal rule, no collisions), timed on their own.
+Figures: pair-steps/s of the audit (wall; ``pair_steps_per_cpu_s``: per CPU second), real-time factors of the
+simulation alone, the audit alone and the two timings added (``sim_plus_audit_rtf``: not one co-simulation), ms of
+audit per step, and how many of the pair-steps were junction situations (``junction_pair_steps``: pairs in a
+conflict area, one per pair and step). The junction situations alone (``intersection_situations`` over the same
+snapshots, their vehicle frames built untimed; CPU time): ms per step and situation rows (one per pair and conflict
+area) per second (``junction_rows_per_s``). The junction kernel's first call in a fresh process (``jit_compile_s``:
+an empty numba cache, as in a fresh clone; ``jit_cached_s``: from the cache it left), each with numba's import.
 
 The same figures again, prefixed ``saturated_``, for the same network, signal program and seed with every flow
 scaled by SATURATED_DEMAND (as a batch's ``demand_scale``): ~200 vehicles at once queue at red and cross, ~2,000
@@ -91,18 +91,19 @@ def audit_figures(spec: ScenarioSpec) -> tuple[dict, int]:
     auditor.observe(snapshots[0])  # the junction kernel loaded (its first call is timed on its own below)
     auditor = Auditor(network, param_resolver(spec))
     junction_pair_steps = 0
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     for snapshot in snapshots:
         junction_pair_steps += int((auditor.observe(snapshot).kind >= FIRST_INTERSECTION_CODE).sum())
     result = auditor.finish()
-    audit_wall = time.perf_counter() - started
+    audit_wall, audit_cpu = time.perf_counter() - started, time.process_time() - cpu
     junction = int(result.episodes.situation.str.startswith("intersection").sum())
     spent, rows = junction_time(snapshots, network, auditor)
     return {"sim_s": spec.duration_s, "peak_vehicles": peak, "sim_only_rtf": spec.duration_s / sim_wall,
             "audit_only_rtf": spec.duration_s / audit_wall,
             "sim_plus_audit_rtf": spec.duration_s / (sim_wall + audit_wall),
             "audit_ms_per_step": 1000 * audit_wall / len(snapshots), "pair_steps": auditor.pair_steps,
-            "pair_steps_per_s": auditor.pair_steps / audit_wall, "junction_pair_steps": junction_pair_steps,
+            "pair_steps_per_s": auditor.pair_steps / audit_wall, "pair_steps_per_cpu_s": auditor.pair_steps / audit_cpu,
+            "junction_pair_steps": junction_pair_steps,
             "episodes": len(result.episodes), "junction_episodes": junction,
             "junction_ms_per_step": 1000 * spent / len(snapshots), "junction_rows": rows,
             "junction_rows_per_s": rows / spent}, junction
@@ -124,7 +125,8 @@ def main() -> None:
           f"{figures['audit_ms_per_step']:.2f} ms/step, {junction} junction episodes; junction situations "
           f"{figures['junction_ms_per_step']:.3f} ms/step, {figures['junction_rows_per_s'] / 1e6:.2f} M rows/s (CPU); "
           f"saturated (demand x{SATURATED_DEMAND:g}, peak {saturated['peak_vehicles']} vehicles): "
-          f"{saturated['pair_steps_per_s'] / 1e6:.2f} M pair-steps/s, junction situations "
+          f"{saturated['pair_steps_per_s'] / 1e6:.2f} M pair-steps/s ({saturated['pair_steps_per_cpu_s'] / 1e6:.2f} M "
+          f"per CPU s), junction situations "
           f"{saturated['junction_ms_per_step']:.3f} ms/step, {saturated['junction_rows_per_s'] / 1e6:.2f} M rows/s; "
           f"kernel's first call {compile_s:.1f} s compiling ({compile_cpu:.1f} s CPU), {cached_s:.1f} s from the cache")
 

@@ -109,9 +109,9 @@ def test_the_kernel_gives_the_numpy_formulas_pairs(seed):
     length, v = rng.uniform(3.0, 12.0, CARS), np.where(rng.random(CARS) < 0.2, 0.0, rng.uniform(0.0, 30.0, CARS))
     p = _random_params(rng, CARS)
     pairs = j["pairs"]
-    floats, ints, flags, codes = junction_pairs(rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, j["start"],
-                                                j["end"], j["static"], j["area"], j["crossing"], j["tls_index"],
-                                                j["ranks"], length, v, param_table(p))
+    floats, ints, flags, codes = junction_pairs(
+        rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, j["start"], j["end"], j["static"],
+        j["area"], j["crossing"], j["tls_index"], j["ranks"], length, v, param_table(p))
     want_floats, want = _numpy_pairs(j, rows, links, pos, id_rank, length, v, p)
     assert (flags.dtype, codes.dtype) == (np.bool_, np.int8)  # as PairSituations holds them
     got = dict(zip(INT_COLUMNS + FLAG_COLUMNS + CODE_COLUMNS, [*ints, *flags, *codes]))

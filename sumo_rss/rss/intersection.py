@@ -169,12 +169,12 @@ def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any,
 def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray | None, network: RoadNetwork,
                      junctions: JunctionModel, horizon: float, levels: int = 0,
                      route_edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
-    [m], negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane
-    within ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its
-    lane where that is unknown, -1; None: :func:`next_route_edge` of ``route_edges``, found in the kernel). With ``levels`` and the vehicles' ``route_edges``: also the entries at up to
-    ``levels`` further junctions along each known route whose links start within ``horizon``
-    (:func:`.junction_kernel.entries`, compiled)."""
+    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path [m],
+    negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane within
+    ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its lane where
+    that is unknown, -1; None: :func:`next_route_edge` of ``route_edges``, found in the kernel). With ``levels`` and
+    the vehicles' ``route_edges``: also the entries at up to ``levels`` further junctions along each known route
+    whose links start within ``horizon`` (:func:`.junction_kernel.entries`, compiled)."""
     from .junction_kernel import entries  # numba: only where junctions are
 
     return entries(lane, lane_pos, _NO_EDGES if next_edge is None else next_edge,

@@ -33,12 +33,13 @@ def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, 
     negative before its start). A vehicle on an internal lane (``lane``, its position ``lane_pos`` [m]) is on that
     lane's link; one on an approach lane within ``horizon`` [m] of its end takes the link to its route's next edge
     ``next_edge`` (every link from its lane where that is unknown, -1; an empty ``next_edge``: the edge after the
-    lane's on the vehicle's ``route_edges``, as :func:`~.intersection.next_route_edge` gives it). Then, up to ``levels`` times, the links at
-    the next junction along each entry's route (``route_edges`` [n, k], -1 padded), from the lane its link leads
-    into, where the route is known and the link starts within ``horizon`` of the front bumper: where edges between
-    junctions are short (a roundabout's 20 m) a car is in its conflicts at the next junction before it reaches the
-    edge leading there. In order: the vehicles inside, the approaching ones (by row, then their lane's links), then
-    each further level by the entry it follows. The rest are the junction model's and the network's arrays."""
+    lane's on the vehicle's ``route_edges``, as :func:`~.intersection.next_route_edge` gives it). Then, up to
+    ``levels`` times, the links at the next junction along each entry's route (``route_edges`` [n, k], -1 padded),
+    from the lane its link leads into, where the route is known and the link starts within ``horizon`` of the front
+    bumper: where edges between junctions are short (a roundabout's 20 m) a car is in its conflicts at the next
+    junction before it reaches the edge leading there. In order: the vehicles inside, the approaching ones (by row,
+    then their lane's links), then each further level by the entry it follows. The rest are the junction model's and
+    the network's arrays."""
     n, width = lane.size, lane_links.shape[1]
     rows = np.empty(n * (1 + width), dtype=np.int64)
     links = np.empty(rows.size, dtype=np.int64)
