@@ -14,9 +14,10 @@ from sumo_rss.road.junctions import JunctionModel
 from sumo_rss.road.link_pairs import LinkBlocks, LinkPairs
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.intersection import (JUNCTIONS_AHEAD, KIND_SAME, KIND_SIGNAL, KIND_YIELD, PRIORITY_B, PRIORITY_SAME,
-                                       intersection_safety, junction_entries, next_route_edge)
-from sumo_rss.rss.junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs
-from sumo_rss.rss.params import PARAM_NAMES, PRESETS, RssParamArrays, RssParams, preset_params
+                                       intersection_safety, junction_entries, next_route_edge,
+                                       param_table)
+from sumo_rss.rss.junction_kernel import CODE_COLUMNS, FLAG_COLUMNS, FLOAT_COLUMNS, INT_COLUMNS, junction_pairs
+from sumo_rss.rss.params import PRESETS, RssParamArrays, RssParams, preset_params
 from sumo_rss.rss.situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP
 from sumo_runs import DATA
 
@@ -61,7 +62,7 @@ def _junction(rng: np.random.Generator) -> dict:
             "ranks": rng.integers(-1, 3, LINKS)}
 
 
-def _numpy_pairs(j: dict, rows, links, pos, id_rank, length, v, p) -> tuple[np.ndarray, ...]:
+def _numpy_pairs(j: dict, rows, links, pos, id_rank, length, v, p) -> tuple[np.ndarray, dict]:
     """The kernel's outputs by numpy: every two entries of two cars whose links share an area, neither past it."""
     i, k = np.triu_indices(len(rows), 1)
     pairs = j["pairs"]
@@ -92,9 +93,9 @@ def _numpy_pairs(j: dict, rows, links, pos, id_rank, length, v, p) -> tuple[np.n
     floats = np.array([np.where(a_yields, enter_a, enter_b), v[ra], v[rb], np.where(a_yields, s.need_a, s.need_b),
                        enter_a, enter_b]).reshape(len(FLOAT_COLUMNS), -1)
     rules = s.able_to_stop * RULE_ABLE_TO_STOP + s.in_front * RULE_IN_FRONT + s.no_time_overlap * RULE_NO_OVERLAP
-    ints = np.array([ra, rb, kind, ~s.a_in_front, s.safe, rules, priority,
-                     np.where(s.a_in_front, 1, np.where(s.b_in_front, 2, 0)), ka]).reshape(len(INT_COLUMNS), -1)
-    return floats, ints.astype(np.int64)
+    columns = {"a": ra, "b": rb, "kind": kind, "a_is_rear": ~s.a_in_front, "safe": s.safe, "rules": rules,
+               "priority": priority, "in_front": np.where(s.a_in_front, 1, np.where(s.b_in_front, 2, 0)), "pair": ka}
+    return floats, {name: np.asarray(x).reshape(-1) for name, x in columns.items()}
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -108,16 +109,19 @@ def test_the_kernel_gives_the_numpy_formulas_pairs(seed):
     length, v = rng.uniform(3.0, 12.0, CARS), np.where(rng.random(CARS) < 0.2, 0.0, rng.uniform(0.0, 30.0, CARS))
     p = _random_params(rng, CARS)
     pairs = j["pairs"]
-    floats, ints = junction_pairs(rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, j["start"],
-                                  j["end"], j["static"], j["area"], j["crossing"], j["tls_index"], j["ranks"], length,
-                                  v, np.column_stack([getattr(p, name) for name in PARAM_NAMES]))
-    want_floats, want_ints = _numpy_pairs(j, rows, links, pos, id_rank, length, v, p)
+    floats, ints, flags, codes = junction_pairs(
+        rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, j["start"], j["end"], j["static"],
+        j["area"], j["crossing"], j["tls_index"], j["ranks"], length, v, param_table(p))
+    want_floats, want = _numpy_pairs(j, rows, links, pos, id_rank, length, v, p)
+    assert (flags.dtype, codes.dtype) == (np.bool_, np.int8)  # as PairSituations holds them
+    got = dict(zip(INT_COLUMNS + FLAG_COLUMNS + CODE_COLUMNS, [*ints, *flags, *codes]))
     assert ints.shape[1] > 20  # the junction gives pairs
-    assert np.array_equal(ints, want_ints)
+    assert set(got) == set(want)
+    assert all(np.array_equal(got[name], want[name]) for name in want)
     assert np.allclose(floats, want_floats, rtol=0.0, atol=1e-9)
     # The pairs meet every case: each combination of the three rules holding, and every kind of priority.
-    assert set(ints[INT_COLUMNS.index("rules")].tolist()) == set(range(8))
-    assert set(ints[INT_COLUMNS.index("kind")].tolist()) == {KIND_SIGNAL, KIND_YIELD, KIND_SAME}
+    assert set(got["rules"].tolist()) == set(range(8))
+    assert set(got["kind"].tolist()) == {KIND_SIGNAL, KIND_YIELD, KIND_SAME}
 
 
 @pytest.fixture(scope="module")
@@ -183,5 +187,8 @@ def test_entries_are_each_vehicles_links_and_those_further_along_its_route(fragm
         want = _reference_entries(lane, lane_pos, next_edge, routes, levels, horizon, junctions, network)
         assert list(zip(rows.tolist(), links.tolist())) == [(i, k) for i, k, _ in want]
         assert np.array_equal(pos, np.array([p for _, _, p in want]))
+        # Without next_edge the kernel finds it on the routes itself (as the auditor calls it): the same entries.
+        found = junction_entries(lane, lane_pos, None, network, junctions, horizon, levels, routes)
+        assert all(np.array_equal(x, y) for x, y in zip(found, (rows, links, pos)))
         if levels:
             assert len(rows) > len(junction_entries(lane, lane_pos, next_edge, network, junctions, horizon)[0]) + 50

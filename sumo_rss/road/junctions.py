@@ -66,7 +66,7 @@ class ConflictPairs:
     start: np.ndarray  # [K] its start along a's path [m]
     end: np.ndarray  # [K] its end along a's path [m]
     static_priority: np.ndarray  # [K] +1: a has priority, -1: a yields, 0: same
-    area_id: np.ndarray  # [K] the conflict area's id (object)
+    area_id: np.ndarray  # [K] the conflict area's id (str, not object: cheap to gather and to look up)
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,7 +170,7 @@ class JunctionModel:
         area = self.area_index.values[pairs.flat]
         return ConflictPairs(pairs, area, self.area_start.values[pairs.flat],
                              self.area_end.values[pairs.flat], self.static_priority.values[pairs.flat],
-                             np.array([c.id for c in self.conflicts], dtype=object)[area])
+                             np.array([c.id for c in self.conflicts], dtype=str)[area])
 
     @cached_property
     def _signals(self) -> tuple[list[str], np.ndarray]:

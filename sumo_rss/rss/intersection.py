@@ -19,6 +19,7 @@ asks the car behind to be able to stop before the area. All functions broadcast 
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +30,7 @@ from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir, time_to_cover
-from .params import PARAM_NAMES
+from .params import PARAM_NAMES, RssParamArrays
 from .situations import SITUATION_CODES, PairSituations, SituationType, VehicleFrame
 
 TIME_PRECISION = 1e-3  # [s] arrival must follow exit by more than this (ad_rss's Duration tolerance)
@@ -38,6 +39,9 @@ KIND_SIGNAL = SITUATION_CODES.index(SituationType.INTERSECTION_PRIORITY)
 KIND_YIELD = SITUATION_CODES.index(SituationType.INTERSECTION_YIELD)
 KIND_SAME = SITUATION_CODES.index(SituationType.INTERSECTION_SAME_PRIORITY)
 PRIORITY_SAME, PRIORITY_A, PRIORITY_B = 0, 1, 2
+_NO_EDGES, _NO_ROUTES = np.zeros(0, dtype=np.int64), np.zeros((0, 0), dtype=np.int64)  # the kernel's "none given"
+# Per junction model, the last signal states seen and their links' ranks (:func:`_signal_ranks`).
+_LAST_RANKS: weakref.WeakKeyDictionary[JunctionModel, tuple[tuple, np.ndarray]] = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,18 +166,19 @@ def link_priority(junctions: JunctionModel, ranks: np.ndarray, la: Any, lb: Any,
     return priority, by_signal
 
 
-def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray, network: RoadNetwork,
+def junction_entries(lane: np.ndarray, lane_pos: np.ndarray, next_edge: np.ndarray | None, network: RoadNetwork,
                      junctions: JunctionModel, horizon: float, levels: int = 0,
                      route_edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path
-    [m], negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane
-    within ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its
-    lane where that is unknown, -1). With ``levels`` and the vehicles' ``route_edges``: also the entries at up to
-    ``levels`` further junctions along each known route whose links start within ``horizon``
-    (:func:`.junction_kernel.entries`, compiled)."""
+    """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path [m],
+    negative before its start). A vehicle on an internal lane is on that lane's link; one on an approach lane within
+    ``horizon`` [m] of its end takes the link to its route's next edge ``next_edge`` (every link from its lane where
+    that is unknown, -1; None: :func:`next_route_edge` of ``route_edges``, found in the kernel). With ``levels`` and
+    the vehicles' ``route_edges``: also the entries at up to ``levels`` further junctions along each known route
+    whose links start within ``horizon`` (:func:`.junction_kernel.entries`, compiled)."""
     from .junction_kernel import entries  # numba: only where junctions are
 
-    return entries(lane, lane_pos, next_edge, np.zeros((0, 0), dtype=np.int64) if route_edges is None else route_edges,
+    return entries(lane, lane_pos, _NO_EDGES if next_edge is None else next_edge,
+                   _NO_ROUTES if route_edges is None else route_edges,
                    levels, float(horizon), junctions.lane_link, junctions.lane_link_offset, junctions.lane_links,
                    junctions.link_to_edge, junctions.link_to_lane, junctions.link_length, network.lane_length,
                    network.lane_edge)
@@ -185,31 +190,44 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     area (the auditor keeps the most critical per pair). Vehicles within ``horizon`` [m] of a junction take part:
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), or already on the link's internal lanes."""
-    rows, links, pos = junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge),
-                                        network, junctions, horizon, JUNCTIONS_AHEAD, frame.route_edges)
-    from .junction_kernel import FLOAT_COLUMNS, INT_COLUMNS, junction_pairs  # numba: only where junctions are
+    rows, links, pos = junction_entries(frame.lane, frame.lane_pos, None, network, junctions, horizon,
+                                        JUNCTIONS_AHEAD, frame.route_edges)
+    from .junction_kernel import junction_pairs  # numba: only where junctions are
 
     table, pairs = junctions.conflict_pairs, junctions.conflict_pairs.pairs
     id_rank = np.empty(len(snapshot.ids), dtype=np.int64)
     id_rank[np.argsort(snapshot.ids, kind="stable")] = np.arange(len(snapshot.ids))
-    p = frame.params
-    floats, ints = junction_pairs(
+    floats, ints, flags, codes = junction_pairs(
         rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, table.start, table.end,
         table.static_priority, table.area, junctions.area_crossing, junctions.link_tls_index,
-        junctions.signal_ranks(snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
-        np.column_stack([getattr(p, name) for name in PARAM_NAMES]))
-    if not ints.shape[1]:  # most steps of a city: nothing to evaluate
-        return _no_situations()
-    f, c = dict(zip(FLOAT_COLUMNS, floats)), dict(zip(INT_COLUMNS, ints))
+        _signal_ranks(junctions, snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
+        param_table(frame.params))
     n = ints.shape[1]
-    nan = np.full(n, np.nan)
+    if not n:  # most steps of a city: nothing to evaluate
+        return _no_situations()
+    (lon_gap, v_lon_a, v_lon_b, lon_d_min, enter_a, enter_b), (a, b, kind, pair) = floats, ints
+    nan, no = np.full(n, np.nan), np.zeros(n, dtype=bool)
     return PairSituations(
-        a=c["a"], b=c["b"], kind=c["kind"], a_is_rear=c["a_is_rear"].astype(bool), a_is_left=np.zeros(n, dtype=bool),
-        lon_gap=f["lon_gap"], lat_gap=nan, v_lon_a=f["v_lon_a"], v_lon_b=f["v_lon_b"], v_lat_a=np.zeros(n),
-        v_lat_b=np.zeros(n), lon_d_min=f["lon_d_min"], lat_d_min=nan, lon_safe=c["safe"].astype(bool),
-        lat_safe=np.zeros(n, dtype=bool), rules=c["rules"].astype(np.int8), priority=c["priority"].astype(np.int8),
-        in_front=c["in_front"].astype(np.int8), area=table.area_id[c["pair"]], enter_a=f["enter_a"],
-        enter_b=f["enter_b"])
+        a=a, b=b, kind=kind, a_is_rear=flags[0], a_is_left=no, lon_gap=lon_gap, lat_gap=nan, v_lon_a=v_lon_a,
+        v_lon_b=v_lon_b, v_lat_a=np.zeros(n), v_lat_b=np.zeros(n), lon_d_min=lon_d_min, lat_d_min=nan,
+        lon_safe=flags[1], lat_safe=no, rules=codes[0], priority=codes[1], in_front=codes[2],
+        area=table.area_id[pair], enter_a=enter_a, enter_b=enter_b)
+
+
+def param_table(params: RssParamArrays) -> np.ndarray:
+    """[n, fields] the vehicles' RSS parameters in PARAM_NAMES' order, as the junction kernel reads them (one copy
+    of the fields laid row by row; the transposed view, not a contiguous copy)."""
+    return np.array([getattr(params, name) for name in PARAM_NAMES], dtype=float).T
+
+
+def _signal_ranks(junctions: JunctionModel, tls_states: dict[str, str] | None) -> np.ndarray:
+    """:meth:`JunctionModel.signal_ranks`, computed again only when the signal states differ from the last step's
+    (they change at a phase switch, every few seconds, not every step). The array is read, never written."""
+    key = tuple(tls_states.items()) if tls_states else ()
+    last = _LAST_RANKS.get(junctions)
+    if last is None or last[0] != key:
+        last = _LAST_RANKS[junctions] = (key, junctions.signal_ranks(tls_states))
+    return last[1]
 
 
 def _no_situations() -> PairSituations:

@@ -19,9 +19,11 @@ from .intersection import (KIND_SAME, KIND_SIGNAL, KIND_YIELD, PRIORITY_A, PRIOR
                            stop_and_front)
 from .situations import RULE_ABLE_TO_STOP, RULE_IN_FRONT, RULE_NO_OVERLAP
 
-# Columns of junction_pairs' outputs.
-FLOAT_COLUMNS = ("lon_gap", "v_lon_a", "v_lon_b", "lon_d_min", "enter_a", "enter_b")
-INT_COLUMNS = ("a", "b", "kind", "a_is_rear", "safe", "rules", "priority", "in_front", "pair")
+# Rows of junction_pairs' outputs, in the types PairSituations holds them (no conversion per step).
+FLOAT_COLUMNS = ("lon_gap", "v_lon_a", "v_lon_b", "lon_d_min", "enter_a", "enter_b")  # float64
+INT_COLUMNS = ("a", "b", "kind", "pair")  # int64
+FLAG_COLUMNS = ("a_is_rear", "safe")  # bool
+CODE_COLUMNS = ("rules", "priority", "in_front")  # int8
 
 
 @kernel
@@ -30,12 +32,14 @@ def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, 
     """Vehicles' entries into junction links: (vehicle row, link, front bumper position along the link's path [m],
     negative before its start). A vehicle on an internal lane (``lane``, its position ``lane_pos`` [m]) is on that
     lane's link; one on an approach lane within ``horizon`` [m] of its end takes the link to its route's next edge
-    ``next_edge`` (every link from its lane where that is unknown, -1). Then, up to ``levels`` times, the links at
-    the next junction along each entry's route (``route_edges`` [n, k], -1 padded), from the lane its link leads
-    into, where the route is known and the link starts within ``horizon`` of the front bumper: where edges between
-    junctions are short (a roundabout's 20 m) a car is in its conflicts at the next junction before it reaches the
-    edge leading there. In order: the vehicles inside, the approaching ones (by row, then their lane's links), then
-    each further level by the entry it follows. The rest are the junction model's and the network's arrays."""
+    ``next_edge`` (every link from its lane where that is unknown, -1; an empty ``next_edge``: the edge after the
+    lane's on the vehicle's ``route_edges``, as :func:`~.intersection.next_route_edge` gives it). Then, up to
+    ``levels`` times, the links at the next junction along each entry's route (``route_edges`` [n, k], -1 padded),
+    from the lane its link leads into, where the route is known and the link starts within ``horizon`` of the front
+    bumper: where edges between junctions are short (a roundabout's 20 m) a car is in its conflicts at the next
+    junction before it reaches the edge leading there. In order: the vehicles inside, the approaching ones (by row,
+    then their lane's links), then each further level by the entry it follows. The rest are the junction model's and
+    the network's arrays."""
     n, width = lane.size, lane_links.shape[1]
     rows = np.empty(n * (1 + width), dtype=np.int64)
     links = np.empty(rows.size, dtype=np.int64)
@@ -47,9 +51,12 @@ def entries(lane, lane_pos, next_edge, route_edges, levels, horizon, lane_link, 
             m += 1
     for i in range(n):
         to_end = lane_length[lane[i]] - lane_pos[i]
+        if to_end > horizon:
+            continue
+        after = next_edge[i] if next_edge.size else _next_on_route(route_edges, i, lane_edge[lane[i]])
         for c in range(width):
             k = lane_links[lane[i], c]
-            if k >= 0 and to_end <= horizon and (next_edge[i] < 0 or link_to_edge[k] == next_edge[i]):
+            if k >= 0 and (after < 0 or link_to_edge[k] == after):
                 rows[m], links[m], pos[m] = i, k, -to_end
                 m += 1
     first = 0
@@ -96,26 +103,42 @@ def conflicting_entries(links, indptr, other):
     """(i, j, k): every two entries i < j whose links share a conflict area, in (i, j) order, and the number of
     their link pair (links[i], links[j]) (``indptr``, ``other``: :class:`~..road.link_pairs.LinkPairList`'s).
     Found through each entry's conflicting links and the entries on those: the work grows with the pairs that
-    conflict, not with the square of the entries."""
+    conflict, not with the square of the entries. They are found in i order; two counting passes (by j, then into
+    each i's block) put each block in j order without a sort (an argsort of the pairs was half the function)."""
+    e = links.size
     by_link = np.argsort(links, kind="mergesort")
     on_link = links[by_link]
-    count = 0
-    for i in range(links.size):
+    block = np.zeros(e + 1, dtype=np.int64)  # block[i + 1]: pairs of entry i, then where i's block starts
+    for i in range(e):
         for k in range(indptr[links[i]], indptr[links[i] + 1]):
             lo, hi = np.searchsorted(on_link, other[k], "left"), np.searchsorted(on_link, other[k], "right")
             for m in range(lo, hi):
-                count += by_link[m] > i
-    out = np.empty((3, count), dtype=np.int64)
+                block[i + 1] += by_link[m] > i
+    for i in range(e):
+        block[i + 1] += block[i]
+    found = np.empty((3, block[e]), dtype=np.int64)
+    of_j = np.zeros(e + 1, dtype=np.int64)  # of_j[j + 1]: pairs with second entry j, then where j's run starts
     n = 0
-    for i in range(links.size):
+    for i in range(e):
         for k in range(indptr[links[i]], indptr[links[i] + 1]):
             lo, hi = np.searchsorted(on_link, other[k], "left"), np.searchsorted(on_link, other[k], "right")
             for m in range(lo, hi):
                 if by_link[m] > i:
-                    out[0, n], out[1, n], out[2, n] = i, by_link[m], k
+                    found[0, n], found[1, n], found[2, n] = i, by_link[m], k
+                    of_j[by_link[m] + 1] += 1
                     n += 1
-    order = np.argsort(out[0] * links.size + out[1])  # (i, j) is unique: any sort gives the one order
-    return out[:, order]
+    for j in range(e):
+        of_j[j + 1] += of_j[j]
+    by_j = np.empty(n, dtype=np.int64)  # the pairs in j order (in i order within each j)
+    for t in range(n):
+        by_j[of_j[found[1, t]]] = t
+        of_j[found[1, t]] += 1
+    out = np.empty((3, n), dtype=np.int64)
+    for t in by_j:  # into each i's block, in j order
+        i = found[0, t]
+        out[0, block[i]], out[1, block[i]], out[2, block[i]] = i, found[1, t], found[2, t]
+        block[i] += 1
+    return out
 
 
 @kernel
@@ -125,11 +148,14 @@ def junction_pairs(rows, links, pos, id_rank, indptr, other, reverse, start, end
     vehicles whose links share a conflict area that neither has left, named by id order (``id_rank``: each
     vehicle's rank among the step's ids), evaluated. The conflict pairs' tables (``indptr`` ... ``area``) are
     :class:`~..road.junctions.ConflictPairs`'; ``ranks``: the links' signal ranks; per vehicle ``length`` [m],
-    ``v_forward`` (speed along the lane, floored at 0) [m/s] and ``rss_table`` [n, fields]. Returns [FLOAT_COLUMNS, m] floats and [INT_COLUMNS, m] ints
-    (``pair``: the number of a's link pair, for its area's id)."""
+    ``v_forward`` (speed along the lane, floored at 0) [m/s] and ``rss_table`` [n, fields]. Returns [FLOAT_COLUMNS, m]
+    floats, [INT_COLUMNS, m] int64 (``pair``: the number of a's link pair, for its area's id), [FLAG_COLUMNS, m]
+    bools and [CODE_COLUMNS, m] int8."""
     found = conflicting_entries(links, indptr, other)
     floats = np.empty((len(FLOAT_COLUMNS), found.shape[1]))
     ints = np.empty((len(INT_COLUMNS), found.shape[1]), dtype=np.int64)
+    flags = np.empty((len(FLAG_COLUMNS), found.shape[1]), dtype=np.bool_)
+    codes = np.empty((len(CODE_COLUMNS), found.shape[1]), dtype=np.int8)
     n = 0
     for t in range(found.shape[1]):
         i, j, k = found[0, t], found[1, t], found[2, t]
@@ -175,11 +201,11 @@ def junction_pairs(rows, links, pos, id_rank, indptr, other, reverse, start, end
         floats[4, n], floats[5, n] = enter_a, enter_b
         ints[0, n], ints[1, n] = ra, rb
         ints[2, n] = KIND_SIGNAL if by_signal else (KIND_YIELD if priority != PRIORITY_SAME else KIND_SAME)
-        ints[3, n] = not a_front
-        ints[4, n] = able or in_front or no_overlap
-        ints[5, n] = able * RULE_ABLE_TO_STOP + in_front * RULE_IN_FRONT + no_overlap * RULE_NO_OVERLAP
-        ints[6, n] = priority
-        ints[7, n] = 1 if a_front else (2 if b_front else 0)
-        ints[8, n] = ka
+        ints[3, n] = ka
+        flags[0, n] = not a_front
+        flags[1, n] = able or in_front or no_overlap
+        codes[0, n] = able * RULE_ABLE_TO_STOP + in_front * RULE_IN_FRONT + no_overlap * RULE_NO_OVERLAP
+        codes[1, n] = priority
+        codes[2, n] = 1 if a_front else (2 if b_front else 0)
         n += 1
-    return floats[:, :n], ints[:, :n]
+    return floats[:, :n], ints[:, :n], flags[:, :n], codes[:, :n]
