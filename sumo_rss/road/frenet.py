@@ -1,7 +1,7 @@
 """Vectorised projection of points onto lane centre lines: (x, y) ⇄ (s, d).
 
 Lane shapes are stored padded in one array (lanes × points), so that any number of points, each with its own
-lane, is projected in one numpy pass. The first and last segment of every lane extend beyond its ends, so a
+lane, is projected in one call (the nearest segment found by :mod:`.frenet_kernel`, compiled). The first and last segment of every lane extend beyond its ends, so a
 point before the start of a lane gets s < 0 and one after its end s > length (the frame of a lane continues
 straight ahead and behind it).
 
@@ -16,9 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-PROJECT_CHUNK = 1 << 18  # points x segments searched at once by LaneShapes.project (bounds its temporary memory)
-CHUNK_COST = 4096  # [segments] searching this many costs about as much as one more numpy pass over a chunk
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,60 +64,21 @@ class LaneShapes:
         """Project points (x, y) [m] onto lanes ``lane`` (indices): s along the lane [m], d signed offset
         (+ = left of the driving direction) [m] and the lane's heading at the foot point [rad].
 
-        With ``s_hint`` [m] (roughly where along the lane each point is), only the ``window`` segments on each
-        side of the hinted one are searched instead of all of them.
+        Each point is projected onto the nearest of its lane's segments (the first of equally near ones). With
+        ``s_hint`` [m] (roughly where along the lane each point is), only the ``window`` segments on each side of
+        the hinted one are searched instead of all of them.
         """
-        lane = np.asarray(lane, dtype=int)
-        x, y = np.broadcast_to(np.asarray(x, dtype=float), lane.shape), np.broadcast_to(np.asarray(y, dtype=float),
-                                                                                    lane.shape)
-        if s_hint is not None:
-            seg_idx = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
-            return self._project(lane, x, y, seg_idx)
-        # Every segment of each point's lane, in chunks of points whose lanes have about as many segments (the
-        # padding of the longest lane's points would otherwise be searched for every point).
-        n_seg = self.count[lane] - 1
-        widest = int(n_seg.max(initial=1))
-        if len(lane) * widest <= CHUNK_COST:  # too little to be worth a split
-            return self._project(lane, x, y, np.arange(widest)[None, :])
-        order = np.argsort(n_seg, kind="stable")
-        bounds = _chunks(n_seg[order], PROJECT_CHUNK)
-        if len(bounds) == 2:
-            return self._project(lane, x, y, np.arange(widest)[None, :])
-        out = tuple(np.empty(lane.shape) for _ in range(3))
-        for start, end in zip(bounds[:-1], bounds[1:]):
-            rows = order[start:end]
-            for full, part in zip(out, self._project(lane[rows], x[rows], y[rows],
-                                                     np.arange(int(n_seg[rows[-1]]))[None, :])):
-                full[rows] = part
-        return out
+        from .frenet_kernel import nearest_segments  # numba: compiled at the first projection
 
-    def _project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, seg_idx: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`project` onto the segments ``seg_idx`` ([n, k], or [1, k] for every point) of each point's lane,
-        those beyond its ends left out."""
-        n_seg = self.count[lane] - 1  # [n]
-        seg_idx = np.broadcast_to(seg_idx, (lane.shape[0], seg_idx.shape[1]))
-        real = (seg_idx >= 0) & (seg_idx < n_seg[:, None])
-        seg_idx = np.clip(seg_idx, 0, self.points.shape[1] - 2)
-        p = np.stack([x, y], axis=-1)[:, None, :]
-        a = self.points[lane[:, None], seg_idx]  # [n, k, 2] segment starts
-        seg = self.points[lane[:, None], seg_idx + 1] - a
-        length2 = np.einsum("nkj,nkj->nk", seg, seg)
-        real &= length2 > 0.0
-        t = np.einsum("nkj,nkj->nk", p - a, seg) / np.where(real, length2, 1.0)
-        lo = np.where(seg_idx == 0, -np.inf, 0.0)
-        hi = np.where(seg_idx == n_seg[:, None] - 1, np.inf, 1.0)
-        t = np.clip(t, lo, hi)
-        foot = a + t[..., None] * seg
-        dist2 = np.where(real, np.einsum("nkj,nkj->nk", p - foot, p - foot), np.inf)
-        best = np.argmin(dist2, axis=1)
-        rows = np.arange(lane.shape[0])
-        seg_b, a_b, t_b = seg[rows, best], a[rows, best], t[rows, best]
-        seg_len = np.sqrt(length2[rows, best])
-        s = self.cumulative[lane, seg_idx[rows, best]] + t_b * seg_len
-        rel = p[:, 0, :] - a_b
-        d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
-        return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])
+        lane = np.asarray(lane, dtype=int)
+        x, y = (np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), lane.shape)) for v in (x, y))
+        if s_hint is not None:
+            first = self._segment_at(lane, s_hint) - window
+            width = np.full(lane.shape, 2 * window + 1)
+        else:
+            first, width = np.zeros(lane.shape, dtype=int), self.count[lane] - 1
+        s, d, dx, dy = nearest_segments(self.points, self.cumulative, self.count, lane, x, y, first, width)
+        return s, d, np.arctan2(dy, dx)
 
     def point_at(self, lane: np.ndarray, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x, y) [m] of the points ``s`` along lanes ``lane`` and ``d`` left of them [m] (the inverse of
@@ -148,28 +106,6 @@ class LaneShapes:
         or last one beyond a lane's ends)."""
         k = (self.cumulative[lane] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
         return np.clip(k, 0, self.count[lane] - 2)
-
-
-def _chunks(n_seg: np.ndarray, budget: int) -> list[int]:
-    """Boundaries of consecutive chunks of ``n_seg`` (ascending segment counts), searched at once by
-    :meth:`LaneShapes.project` with as many segments as their last point's lane has: a new chunk begins where
-    widening the current one to a point's count would search more padding than a chunk's own cost is worth
-    (CHUNK_COST segments), or the chunk would exceed ``budget`` points x segments."""
-    bounds, points, width = [0], 0, 0
-    values, first, counts = np.unique(n_seg, return_index=True, return_counts=True)
-    for value, start, count in zip(values.tolist(), first.tolist(), counts.tolist()):
-        if points and (points * (value - width) > CHUNK_COST or (points + count) * value > budget):
-            bounds.append(start)
-            points = 0
-        # A run of one count too long for the budget alone is split.
-        while points + count > max(budget // value, 1):
-            take = max(budget // value - points, 1)
-            start, count, points = start + take, count - take, 0
-            bounds.append(start)
-        width, points = value, points + count
-    if bounds[-1] != len(n_seg):
-        bounds.append(len(n_seg))
-    return bounds
 
 
 def _cumulative(points: np.ndarray) -> np.ndarray:
