@@ -53,6 +53,17 @@ def _theirs(path: Path) -> list[tuple]:
             for ts in ET.parse(path).getroot().iter("timestep")]
 
 
+def _times_until_error(path: Path) -> tuple[list[str | None], ET.ParseError]:
+    """The times of the steps read before the parser's error, and the error."""
+    read = []
+    with pytest.raises(ET.ParseError) as error:
+        with open(path, "rb") as source:
+            parser = FcdParser(source)
+            parser.read_root()
+            read.extend(step.time for step in parser)
+    return read, error.value
+
+
 @pytest.fixture(autouse=True)
 def small_blocks(monkeypatch):
     """Blocks of 512 bytes: steps, tags and attribute values cut at every place between blocks."""
@@ -111,13 +122,8 @@ def test_damage_in_a_step_of_sumos_layout_is_expats_error_at_its_line_and_column
     path.write_text("".join(lines))
     with pytest.raises(ET.ParseError) as theirs:
         ET.parse(path)
-    read = []
-    with pytest.raises(ET.ParseError) as ours:
-        with open(path, "rb") as source:
-            parser = FcdParser(source)
-            parser.read_root()
-            read.extend(step.time for step in parser)
-    assert ours.value.position == theirs.value.position and ours.value.position[0] == bad + 1
+    read, ours = _times_until_error(path)
+    assert ours.position == theirs.value.position and ours.position[0] == bad + 1
     assert read == [f"{0.1 * s:.2f}" for s in range(75)]  # every step before the damaged one (four cars a step)
 
 
@@ -125,10 +131,5 @@ def test_a_file_cut_inside_a_step_ends_with_expats_error_after_the_last_complete
     text = _fcd(50)
     path = tmp_path / "fcd.xml"
     path.write_text(text[:text.index('<timestep time="4.00">') + 100])
-    read = []
-    with pytest.raises(ET.ParseError) as ours:
-        with open(path, "rb") as source:
-            parser = FcdParser(source)
-            parser.read_root()
-            read.extend(step.time for step in parser)
-    assert read[-1] == "3.90" and len(read) == 40 and "unclosed token" in str(ours.value)
+    read, ours = _times_until_error(path)
+    assert read[-1] == "3.90" and len(read) == 40 and "unclosed token" in str(ours)
