@@ -1,7 +1,7 @@
 """Vectorised projection of points onto lane centre lines: (x, y) ⇄ (s, d).
 
 Lane shapes are stored padded in one array (lanes × points), so that any number of points, each with its own
-lane, is projected in one numpy pass. The first and last segment of every lane extend beyond its ends, so a
+lane, is projected in one call (the nearest segment found by :mod:`.frenet_kernel`, compiled). The first and last segment of every lane extend beyond its ends, so a
 point before the start of a lane gets s < 0 and one after its end s > length (the frame of a lane continues
 straight ahead and behind it).
 
@@ -16,10 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from .link_pairs import expand_ranges
-
-PROJECT_CHUNK = 1 << 18  # candidate segments searched at once by LaneShapes.project (bounds its temporary memory)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,67 +67,21 @@ class LaneShapes:
         """Project points (x, y) [m] onto lanes ``lane`` (indices): s along the lane [m], d signed offset
         (+ = left of the driving direction) [m] and the lane's heading at the foot point [rad].
 
-        With ``s_hint`` [m] (roughly where along the lane each point is), only the ``window`` segments on each
-        side of the hinted one are searched instead of all of them.
+        Each point is projected onto the nearest of its lane's segments (the first of equally near ones). With
+        ``s_hint`` [m] (roughly where along the lane each point is), only the ``window`` segments on each side of
+        the hinted one are searched instead of all of them.
         """
-        lane = np.asarray(lane, dtype=int)
-        x, y = np.broadcast_to(np.asarray(x, dtype=float), lane.shape), np.broadcast_to(np.asarray(y, dtype=float),
-                                                                                    lane.shape)
-        if not lane.size:
-            return np.zeros(0), np.zeros(0), np.zeros(0)
-        if s_hint is not None:
-            near = self._segment_at(lane, s_hint)[:, None] + np.arange(-window, window + 1)[None, :]
-            return self._project(lane, x, y, np.repeat(np.arange(len(lane)), near.shape[1]), near.ravel(),
-                                 near.shape[1])
-        # Every segment of each point's lane (no padding searched), in parts of about PROJECT_CHUNK segments (bounds
-        # the temporary memory; a lane longer than that is one part).
-        n_seg = self.count[lane] - 1
-        ends = np.cumsum(n_seg)
-        parts = [0]
-        while parts[-1] < len(lane):
-            done = ends[parts[-1] - 1] if parts[-1] else 0
-            parts.append(max(int(np.searchsorted(ends, done + PROJECT_CHUNK, side="right")), parts[-1] + 1))
-        out = tuple(np.empty(lane.shape) for _ in range(3))
-        for first, stop in zip(parts[:-1], parts[1:]):
-            rows = slice(first, stop)
-            owner, segment = expand_ranges(np.zeros(stop - first, dtype=int), n_seg[rows])
-            for full, part in zip(out, self._project(lane[rows], x[rows], y[rows], owner, segment)):
-                full[rows] = part
-        return out
+        from .frenet_kernel import nearest_segments  # numba: compiled at the first projection
 
-    def _project(self, lane: np.ndarray, x: np.ndarray, y: np.ndarray, owner: np.ndarray, segment: np.ndarray,
-                 width: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`project` onto candidate segments: ``segment[c]`` of the lane of point ``owner[c]`` (ascending;
-        every point has at least one; ``width``: as many for every point); candidates beyond a lane's ends are
-        left out, and of the others each point takes the nearest (the first of equals)."""
-        on = lane[owner]
-        n_seg = self.count[on] - 1
-        real = (segment >= 0) & (segment < n_seg)
-        segment = np.clip(segment, 0, self.points.shape[1] - 2)
-        p = np.stack([x, y], axis=-1)
-        q = p[owner]
-        a = self.points[on, segment]  # [c, 2] segment starts
-        seg = self.points[on, segment + 1] - a
-        length2 = np.einsum("cj,cj->c", seg, seg)
-        real &= length2 > 0.0
-        t = np.einsum("cj,cj->c", q - a, seg) / np.where(real, length2, 1.0)
-        lo = np.where(segment == 0, -np.inf, 0.0)
-        hi = np.where(segment == n_seg - 1, np.inf, 1.0)
-        t = np.clip(t, lo, hi)
-        foot = a + t[:, None] * seg
-        dist2 = np.where(real, np.einsum("cj,cj->c", q - foot, q - foot), np.inf)
-        if width is not None:
-            best = np.arange(len(lane)) * width + np.argmin(dist2.reshape(len(lane), width), axis=1)
+        lane = np.asarray(lane, dtype=int)
+        x, y = (np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), lane.shape)) for v in (x, y))
+        if s_hint is not None:
+            first = self._segment_at(lane, s_hint) - window
+            width = np.full(lane.shape, 2 * window + 1)
         else:
-            first = np.searchsorted(owner, np.arange(len(lane)))
-            nearest = np.flatnonzero(dist2 == np.minimum.reduceat(dist2, first)[owner])
-            best = nearest[np.searchsorted(owner[nearest], np.arange(len(lane)))]
-        seg_b, a_b, t_b = seg[best], a[best], t[best]
-        seg_len = np.sqrt(length2[best])
-        s = self.cumulative[lane, segment[best]] + t_b * seg_len
-        rel = p - a_b
-        d = (seg_b[:, 0] * rel[:, 1] - seg_b[:, 1] * rel[:, 0]) / seg_len
-        return s, d, np.arctan2(seg_b[:, 1], seg_b[:, 0])
+            first, width = np.zeros(lane.shape, dtype=int), self.count[lane] - 1
+        s, d, dx, dy = nearest_segments(self.points, self.cumulative, self.count, lane, x, y, first, width)
+        return s, d, np.arctan2(dy, dx)
 
     def point_at(self, lane: np.ndarray, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x, y) [m] of the points ``s`` along lanes ``lane`` and ``d`` left of them [m] (the inverse of

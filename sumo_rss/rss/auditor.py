@@ -212,7 +212,12 @@ class Auditor:
             np.full(len(persons), PERSON), persons.vtype), persons.speed) if persons is not None else
             RssParamArrays.stack([]))
         ids = users.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
-        uid = np.array([self._uid.setdefault(v, len(self._uid)) for v in ids], dtype=np.int64)
+        known = list(map(self._uid.get, ids))
+        if None in known:  # numbered in order of appearance
+            for v in ids:
+                self._uid.setdefault(v, len(self._uid))
+            known = list(map(self._uid.__getitem__, ids))
+        uid = np.array(known, dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         horizon = 2.0 * float(frame.reach.max(initial=0.0)) + 20.0
         crossing = intersection_situations(snapshot, frame, self.network, self.junctions, horizon=horizon) \

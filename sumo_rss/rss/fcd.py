@@ -386,17 +386,23 @@ class FcdReader:
         lane_pos, lat_pos = optional("pos"), optional("posLat")
         accel, lat_speed = optional("acceleration"), optional("speedLat")
         signals = _numbers(step, "signals", where, integer=SIGNALS_FORM, default="0")
+        projected = []  # the projections, once the values they need are checked
+
+        def project() -> tuple[tuple | None, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+            projected.append(self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
+                                               lat_speed is None))
+            return projected[0]
+
         check_step(where, time, self._prev_time, StepValues(ids, lane, x, y, angle, speed, lane_pos, lat_pos, accel,
-                                                            lat_speed, signals), self.network)
+                                                            lat_speed, signals), self.network,
+                   (lambda: np.abs(project()[0][1])) if lane_pos is None or lat_pos is None else None)
         if self._resolution is None and len(step) and not step.has("speedLat"):
             self._resolution = self._lateral_resolution(step.column("x"), lat_pos is not None)
-        fronts, centres = self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
-                                            lat_speed is None)
+        fronts, centres = projected[0] if projected else project()
         if fronts is not None:  # SUMO's pos and posLat are those of the front-bumper centre
             s_f, d_f, _ = fronts
             # SUMO measures pos along the lane's own length (with elevation), not its 2-D shape's.
-            s_f = self.network.shapes.lane_pos(lane, s_f)
-            lane_pos = s_f if lane_pos is None else lane_pos
+            lane_pos = self.network.shapes.lane_pos(lane, s_f) if lane_pos is None else lane_pos
             lat_pos = d_f if lat_pos is None else lat_pos
         edge = self.network.lane_edge[lane]
         edge_lat = self.network.lane_offset[lane] + lat_pos

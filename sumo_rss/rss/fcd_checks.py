@@ -8,6 +8,7 @@ real run: they only keep absurd numbers out of the audit and its CSVs.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,10 +45,12 @@ class StepValues:
     signals: np.ndarray | None = None  # SUMO's signal bits
 
 
-def check_step(where: str, time: float, previous_time: float | None, step: StepValues,
-               network: RoadNetwork) -> None:
+def check_step(where: str, time: float, previous_time: float | None, step: StepValues, network: RoadNetwork,
+               from_centre_line: Callable[[], np.ndarray] | None = None) -> None:
     """Refuse the time step ``time`` [s] (``where``: the file and the step, for the message) where a value is
-    beyond what a vehicle can do or contradicts ``network``; FcdError naming the vehicle and the attribute."""
+    beyond what a vehicle can do or contradicts ``network``; FcdError naming the vehicle and the attribute.
+    ``from_centre_line()``: [m] how far each front bumper is from its lane's centre line (its nearest point), where
+    the caller projects them anyway (asked once the numbers are checked); else worked out here."""
     if not abs(time) <= MAX_TIME_S:
         raise _error(f"{where}: time: expected at most {MAX_TIME_S:g} s, got {time:g}")
     if previous_time is not None and time - previous_time < MIN_STEP_S - 1e-9:
@@ -74,7 +77,8 @@ def check_step(where: str, time: float, previous_time: float | None, step: StepV
     if step.lat_pos is not None:
         _refuse(where, step.ids, "posLat", step.lat_pos, np.abs(step.lat_pos) <= half_width + OFF_LANE_M,
                 f"a lateral position at most {OFF_LANE_M:g} m beyond the edge of the vehicle's lane")
-    beyond = _from_centre_line(network, step, half_width) - half_width
+    beyond = (_from_centre_line(network, step, half_width) if from_centre_line is None else from_centre_line()) - \
+        half_width
     bad = np.flatnonzero(beyond > OFF_LANE_M)
     if bad.size:
         k = int(bad[0])

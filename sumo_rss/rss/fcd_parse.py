@@ -1,21 +1,27 @@
 """Streaming parse of SUMO FCD files: each ``<timestep>``'s vehicles as columns of attribute strings.
 
-expat is fed the file block by block and keeps, per vehicle, only its attribute list; a finished step turns the
-lists into columns in one transposition (SUMO writes every vehicle's attributes in one order; steps where they
-differ are read vehicle by vehicle). What the strings mean is :mod:`.fcd`'s business (snapshots, derived values
-and their checks), so that both can change independently.
+The file is read block by block. A time step in SUMO's own layout (every vehicle on its line, its attributes in the
+order of the step before) is read by :mod:`.fcd_scan`'s regular expressions straight into columns; everything else
+goes to expat, which keeps, per vehicle, only its attribute list, and a finished step turns the lists into columns in
+one transposition (steps whose vehicles' attributes differ are read vehicle by vehicle). expat sees every byte of the
+file but the steps taken by the fast path, whose line breaks it is given instead: it checks the document as a
+whole, and its errors name the lines of the file. What the strings mean is :mod:`.fcd`'s business (snapshots,
+derived values and their checks), so that both can change independently.
 """
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import IO
 from xml.parsers import expat
 
 from ..sumo_xml import MALFORMED
+from .fcd_scan import STEP_END, StepLayout
 
 BLOCK_BYTES = 1 << 16  # read and parsed at once (progress moves in these steps)
+MAX_PENDING = 1 << 26  # [bytes] held back for the fast path at most, waiting for a step's end
+FAST_ENCODINGS = ("utf-8", "utf8", "us-ascii", "ascii")  # declared encodings in which ASCII text reads as itself
 ROOT_TAG = "fcd-export"
 UNAUDITED_TAGS = ("container",)  # road users an FCD lists beside vehicles and persons that are not audited
 
@@ -30,29 +36,40 @@ class FcdStep:
     persons: list[list[str]] = field(default_factory=list)  # per person: name, value, name, value, ...
     _columns: dict[str, tuple[str, ...]] | None = field(default=None, repr=False)
     _rows: list[dict[str, str]] | None = field(default=None, repr=False)
+    _count: int | None = field(default=None, repr=False)  # of the vehicles of a step read as columns
+
+    @classmethod
+    def of_columns(cls, time: str, columns: dict[str, tuple[str, ...]], count: int) -> FcdStep:
+        """A step of ``count`` vehicles, every one with the attributes ``columns`` has (by name)."""
+        return cls(time, _columns=columns, _count=count)
 
     def __len__(self) -> int:
-        return len(self.vehicles)
+        return len(self.vehicles) if self._count is None else self._count
 
     def rows(self) -> list[dict[str, str]]:
         """Every vehicle's attributes by name (for checks and messages that go vehicle by vehicle)."""
         if self._rows is None:
-            self._rows = [dict(zip(v[0::2], v[1::2])) for v in self.vehicles]
+            if self._count is not None:
+                names = tuple(self._by_name() or ())
+                self._rows = [dict(zip(names, values)) for values in zip(*self._columns.values())] if names else \
+                    [{} for _ in range(self._count)]
+            else:
+                self._rows = [dict(zip(v[0::2], v[1::2])) for v in self.vehicles]
         return self._rows
 
     def column(self, name: str) -> tuple[str | None, ...]:
         """Attribute ``name`` of every vehicle (None where a vehicle lacks it)."""
         columns = self._by_name()
         if columns is not None:
-            return columns.get(name, (None,) * len(self.vehicles))
+            return columns.get(name, (None,) * len(self))
         return tuple(r.get(name) for r in self.rows())
 
     def has(self, name: str) -> bool:
         """Whether every vehicle has attribute ``name`` (False for a step without vehicles)."""
         columns = self._by_name()
         if columns is not None:
-            return name in columns and bool(self.vehicles)
-        return bool(self.vehicles) and all(name in r for r in self.rows())
+            return name in columns and len(self) > 0
+        return len(self) > 0 and all(name in r for r in self.rows())
 
     def _by_name(self) -> dict[str, tuple[str, ...]] | None:
         """The columns by attribute name where every vehicle has the same attributes in the same order, else None."""
@@ -71,13 +88,20 @@ class FcdStep:
 class _Handler:
     """expat callbacks collecting finished steps."""
 
-    def __init__(self) -> None:
+    def __init__(self, position: Callable[[], int]) -> None:
         self.root: str | None = None
         self.done: list[FcdStep] = []
         self.started_time: str | None = None  # of the last step begun
+        self.closed_at = -1  # where the end tag of the last step closed at the root's level begins [bytes given]
+        self._position = position  # of the event being handled [bytes given to expat]
         self._step: FcdStep | None = None
         self._depth = 0  # of the element being read (1: the root)
         self._step_depth = 0
+
+    @property
+    def at_root(self) -> bool:
+        """Whether no element but the root is open."""
+        return self._depth == 1
 
     def start(self, name: str, attrs: list[str]) -> None:
         self._depth += 1
@@ -99,6 +123,8 @@ class _Handler:
         if name == "timestep" and self._depth == self._step_depth and self._step is not None:
             self.done.append(self._step)
             self._step = None
+            if self._depth == 2:
+                self.closed_at = self._position()
         self._depth -= 1
 
 
@@ -116,11 +142,19 @@ class FcdParser:
 
     def __init__(self, source: IO[bytes]):
         self.source = source
-        self._handler = _Handler()
         self._parser = expat.ParserCreate()
+        self._handler = _Handler(lambda: self._parser.CurrentByteIndex)
         self._parser.ordered_attributes = True
         self._parser.StartElementHandler = self._handler.start
         self._parser.EndElementHandler = self._handler.end
+        self._parser.XmlDeclHandler = self._declared
+        self._parser.StartDoctypeDeclHandler = self._doctype
+        self._pending = b""  # read from the file, not parsed yet
+        self._given = 0  # bytes given to expat
+        self._fast = True  # False for a document the fast path cannot read (a DTD, another encoding)
+        self._clean = False  # expat has just closed a step at the root's level: the fast path may read the next
+        self._layouts: dict[tuple[str, ...], StepLayout] = {}
+        self._layout: StepLayout | None = None  # of the last step expat read
 
     @property
     def started_time(self) -> str | None:
@@ -150,13 +184,82 @@ class FcdParser:
                 return
 
     def _feed(self) -> bool:
-        """Parse the next block (the end of the document once the file is read); False after the end."""
+        """Read and parse the next block (the end of the document once the file is read); False after the end."""
         data = self.source.read(BLOCK_BYTES)
+        if not data:
+            pending, self._pending = self._pending, b""
+            self._expat(pending, final=True)
+            return False
+        self._pending += data
+        self._split()
+        return True
+
+    def _split(self) -> None:
+        """Parse the pending bytes up to the end of their last complete step: each step in SUMO's layout by the
+        fast path (expat given its line breaks), the rest by expat."""
+        pending, start = self._pending, 0
+        while True:
+            if not self._clean:  # expat reads up to the last step's end, then may have closed a step there
+                end = pending.rfind(STEP_END, start)
+                if end < 0:
+                    if self._handler.root is None or len(pending) - start > MAX_PENDING:
+                        self._expat(pending[start:])
+                        start = len(pending)
+                    break
+                start = self._expat_step(pending[start:end + len(STEP_END)], start)
+                continue
+            end = pending.find(STEP_END, start)
+            if end < 0:
+                if len(pending) - start > MAX_PENDING:  # no step's end in sight: not SUMO's layout
+                    self._expat(pending[start:])
+                    start, self._clean = len(pending), False
+                break
+            text = pending[start:end + len(STEP_END)]
+            step = self._read_fast(text)
+            if step is None:
+                start = self._expat_step(text, start)
+            else:
+                self._expat(b"\n" * text.count(b"\n"))
+                self._handler.started_time = step.time
+                self._handler.done.append(step)
+                start += len(text)
+        self._pending = pending[start:]
+
+    def _expat_step(self, text: bytes, start: int) -> int:
+        """Give expat ``text`` (at ``start`` of the pending bytes), which ends with a step's end tag; whether the
+        fast path may read the next step follows: expat closed a step at the root's level with that tag. The
+        pending bytes' position after ``text``."""
+        self._expat(text)
+        self._clean = self._fast and self._handler.closed_at == self._given - len(STEP_END) and \
+            self._handler.at_root
+        if self._clean and self._handler.done:
+            step = self._handler.done[-1]
+            if step.vehicles and step._by_name() is not None:  # every vehicle's attributes in one order
+                names = tuple(step.vehicles[0][0::2])
+                self._layout = self._layouts.get(names) or self._layouts.setdefault(names, StepLayout(names))
+        return start + len(text)
+
+    def _read_fast(self, text: bytes) -> FcdStep | None:
+        """The step ``text`` (white space, then one ``<timestep>`` element) by the fast path; None where it is not
+        in the layout of the step before."""
+        if self._layout is None or not text.isascii():
+            return None
+        read = self._layout.columns(text.decode("ascii"))
+        return None if read is None else FcdStep.of_columns(*read)
+
+    def _expat(self, data: bytes, final: bool = False) -> None:
+        self._given += len(data)
         try:
-            self._parser.Parse(data, not data)
+            self._parser.Parse(data, final)
         except expat.ExpatError as exc:
             raise _parse_error(exc) from None
-        return bool(data)
+
+    def _declared(self, version: str, encoding: str | None, standalone: int) -> None:
+        if encoding is not None and encoding.lower() not in FAST_ENCODINGS:
+            self._fast = False
+
+    def _doctype(self, *declaration: object) -> None:
+        self._fast = False  # a DTD can give attributes defaults and entities: expat reads the whole file
 
 
 def _parse_error(exc: expat.ExpatError) -> ET.ParseError:

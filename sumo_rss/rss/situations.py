@@ -293,8 +293,9 @@ def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.nd
     i, j = pairs[:, 0], pairs[:, 1]
     dist = np.hypot(frame.cx[i] - frame.cx[j], frame.cy[i] - frame.cy[j])
     keep = dist <= frame.reach[i] + frame.reach[j] + np.maximum(gap[i], gap[j]) + size[i] + size[j]
-    order = np.lexsort((j[keep], i[keep]))
-    return i[keep][order], j[keep][order]
+    i, j = i[keep], j[keep]
+    order = np.argsort(i.astype(np.int64) * n + j)  # by i, then j (one key per pair: the order lexsort gives)
+    return i[order], j[order]
 
 
 def _on_route(frame: VehicleFrame, vehicle: np.ndarray, edge: np.ndarray, network: RoadNetwork) -> np.ndarray:
