@@ -2,10 +2,10 @@
 
 Such a car has not left the conflict areas its rear is in (rss.md §4: d_exit is measured from the rear bumper), so
 it stays an entry of the link it came by, at its front bumper's position along the link's path (link length + lane
-position). A snapshot names only the lane the front bumper is on; the link is the one into that lane whose path
-passes nearest the car's rear bumper. SUMO's angle is the direction from the car's back position (on the internal
-lane it came by) to its front, so the rear bumper is ``length`` behind the front along that angle and lies on the
-right link's path; a car whose rear is farther than REAR_OFF_LINK from every link into its lane (a lane change onto
+position). A snapshot names only the lane the front bumper is on; the link is the one into that lane whose
+rear-bumper point (``length`` - lane position back along the link's path) lies nearest the line through the front
+bumper along the car's angle: SUMO's angle is the direction from the car's back position (on the internal lane it
+came by) to its front. A car whose line passes farther than REAR_OFF_LINK from every link's point (a lane change onto
 the exit lane, a teleport) is not placed on any. Units: m.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ..road.link_pairs import expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 
-REAR_OFF_LINK = 1.0  # [m] farthest the rear bumper may lie from the link's path (half a narrow lane)
+REAR_OFF_LINK = 1.0  # [m] farthest the link's rear-bumper point may lie from the car's line (less than half a lane)
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,6 +31,7 @@ class ExitLinks:
     links: np.ndarray  # link indices sorted by the lane they lead into
     path: np.ndarray  # [L, P] a link's internal lanes in driving order, -1 padded
     offset: np.ndarray  # [L, P] where each starts along the link's path [m], +inf padded
+    from_lane: np.ndarray  # [L] the lane each link starts from
 
 
 @lru_cache(maxsize=8)
@@ -45,7 +46,8 @@ def exit_links(junctions: JunctionModel) -> ExitLinks:
     for k, link in enumerate(junctions.links):
         path[k, :len(link.path)] = link.path
         offset[k, :len(link.path)] = junctions.lane_link_offset[list(link.path)]
-    return ExitLinks(indptr=indptr, links=links, path=path, offset=offset)
+    return ExitLinks(indptr=indptr, links=links, path=path, offset=offset,
+                     from_lane=np.array([link.from_lane for link in junctions.links], dtype=np.int64))
 
 
 def leaving_entries(snapshot: WorldSnapshot, lane: np.ndarray, lane_pos: np.ndarray, network: RoadNetwork,
@@ -58,15 +60,18 @@ def leaving_entries(snapshot: WorldSnapshot, lane: np.ndarray, lane_pos: np.ndar
     if not at.size:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
     rows, links = cars[owner], table.links[at]
-    # Where the rear bumper would be along each candidate link's path, and on which of its internal lanes.
-    s = np.maximum(junctions.link_length[links] - (snapshot.length[rows] - lane_pos[rows]), 0.0)
-    part = np.sum(table.offset[links] <= s[:, None], axis=1) - 1
-    internal = table.path[links, part]
-    in_lane = np.minimum(s - table.offset[links, part], network.lane_length[internal])
-    x, y = network.shapes.point_at(internal, network.shapes.shape_s(internal, in_lane), np.zeros(len(rows)))
-    rear_x = snapshot.x[rows] - snapshot.length[rows] * np.cos(snapshot.heading[rows])
-    rear_y = snapshot.y[rows] - snapshot.length[rows] * np.sin(snapshot.heading[rows])
-    off = np.hypot(x - rear_x, y - rear_y)
+    # Where the rear bumper would be along each candidate link's path, on which of its internal lanes, or on the
+    # lane the link starts from (a car longer than the link).
+    s = junctions.link_length[links] - (snapshot.length[rows] - lane_pos[rows])
+    part = np.maximum(np.sum(table.offset[links] <= s[:, None], axis=1) - 1, 0)
+    on = np.where(s < 0.0, table.from_lane[links], table.path[links, part])
+    along = np.where(s < 0.0, network.lane_length[on] + s, s - table.offset[links, part])
+    along = np.clip(along, 0.0, network.lane_length[on])
+    x, y = network.shapes.point_at(on, network.shapes.shape_s(on, along), np.zeros(len(rows)))
+    # How far that point is from the line through the front bumper along the car's angle (the chord from SUMO's
+    # back position: on a curve shorter than the length along the lanes).
+    cos, sin = np.cos(snapshot.heading[rows]), np.sin(snapshot.heading[rows])
+    off = np.abs((x - snapshot.x[rows]) * sin - (y - snapshot.y[rows]) * cos)
     # Per car the nearest link, if near enough.
     order = np.lexsort((off, rows))
     nearest = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
