@@ -3,7 +3,8 @@ in one numpy pass.
 
 Each source path is sampled every SAMPLE_SPACING_M along its centre line once; a sample lies in the other path's
 strip where its offset from that path's centre line is within half that path's width plus half the source's
-width across it (its cosine to the other path's direction), between the other path's ends.
+width across it (its cosine to the other path's direction), and its position along that path between the path's
+ends, widened by half the source's width along it (the sine).
 """
 from __future__ import annotations
 
@@ -41,9 +42,12 @@ def strip_overlaps(paths: list[np.ndarray], widths: np.ndarray, src: np.ndarray,
     at = np.repeat(first[src] - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
     s, other = s_all[at], dst[pair]
     s_dst, d_dst, heading_dst = shapes.project(other, x_all[at], y_all[at])
-    cos = np.abs(np.cos(heading_all[at] - heading_dst))
-    inside = (np.abs(d_dst) < widths[other] / 2.0 + widths[src[pair]] / 2.0 * cos) & (s_dst >= 0.0) & \
-        (s_dst <= shapes.cumulative[other, -1])
+    # The source's cross-section reaches half its width across the other path (cos) and along it (sin): a path
+    # running just past the other's end, nearly along its end line, overlaps the strip its centre line misses.
+    cos, sin = np.abs(np.cos(heading_all[at] - heading_dst)), np.abs(np.sin(heading_all[at] - heading_dst))
+    half = widths[src[pair]] / 2.0
+    inside = (np.abs(d_dst) < widths[other] / 2.0 + half * cos) & (s_dst >= -half * sin) & \
+        (s_dst <= shapes.cumulative[other, -1] + half * sin)
     found = np.zeros(len(src), dtype=bool)
     found[pair[inside]] = True
     bounds = np.concatenate([[0], np.cumsum(n)[:-1]])
