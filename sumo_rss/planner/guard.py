@@ -5,7 +5,8 @@ Before the planned state for the next step is sent to SUMO it is restricted by
 - the responses the ego owes in its open RSS episodes (from the auditor): no more than a_acc during ρ, at least
   b_min (b_corr) braking after ρ until stopped and then no moving off while the episode lasts (it would owe
   braking again at once), never harder than b_max where the ego is the front car, and a
-  lateral speed towards the other car inside its braking envelope;
+  lateral speed towards the other car inside its braking envelope, towards the side the auditor will judge at
+  the step planned (the cars as they will be then, in line or not);
 - two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
   gap to a car ahead in its path is not RSS-safe (where the ego owes that car no longitudinal braking, e.g. it
   cut in, the ego may keep up with it but not close in), and no lateral motion that would make a pair
@@ -252,9 +253,9 @@ class _SidesAtNextStep:
         found = duty & (ids[order][at] == owed.other_id)
         k = order[at]
         d_other = d[k]
-        # Where the other car can be at the next step, and the larger μ of each pair.
+        # Where the other car can be at the next step.
         self.d_other = np.stack([d_other, d_other + snapshot.lat_speed[near[k]] * dt])
-        self.mu = np.maximum(p_all.lat_fluctuation_margin[near[k]], mu_ego)
+        self.mu_other, self.mu_ego = p_all.lat_fluctuation_margin[near[k]], mu_ego
         self.found = found
         self.fallback_left = duty & ~found & owed.owed_lat & owed.other_is_left
         self.fallback_right = duty & ~found & owed.owed_lat & ~owed.other_is_left
@@ -264,7 +265,7 @@ class _SidesAtNextStep:
         """(towards the left, towards the right) per episode, the ego's bumper moving across at ``u``."""
         d_ego = self.d1 + (u - self.u_planned) * self.dt  # its centre at the next step
         offset = self.d_other - d_ego
-        apart = ~in_line(np.abs(offset), self.mu, self.mu) & self.found
+        apart = ~in_line(np.abs(offset), self.mu_other, self.mu_ego) & self.found
         left = np.any(apart & (offset > 0.0), axis=0) | self.fallback_left
         right = np.any(apart & (offset < 0.0), axis=0) | self.fallback_right
         return left, right
