@@ -10,7 +10,7 @@ from sumo_rss.planner.lanes import lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import ParamResolver
-from sumo_rss.rss.responsibility import OwedResponses
+from sumo_rss.rss.responsibility import OwedResponses, in_line
 from sumo_rss.sim.snapshot import WorldSnapshot
 from sumo_rss.trajectory import TrajectoryState
 
@@ -244,3 +244,33 @@ def test_a_move_towards_a_car_that_moves_away_faster_is_not_blocked(frame, other
     done = guard.apply(both, 0, frame, TrajectoryState(302.0, -5.25 + 0.5 * DT, 0.0, 20.0, 0.0), _nothing_owed())
     assert (done.y + 5.25) / DT == pytest.approx(0.0 if blocked else 0.5, abs=1e-6)
     assert guard.counts.lat_predictive == int(blocked)
+
+
+@pytest.mark.parametrize("other_lateral_speed, plan_speed, guarded_speed", [
+    (-1.0, -0.4, 0.0),  # it turns off to the right as the ego moves right: towards it at t + dt, so held
+    (0.0, -0.4, -0.4),  # it keeps in its place: still in line at t + dt (the ego may leave to either side)
+    (-1.0, 0.4, 0.4),  # the ego leaves to the left, away from it
+])
+def test_an_owed_lateral_response_is_judged_with_the_cars_as_they_will_be_at_the_next_step(
+        frame, other_lateral_speed, plan_speed, guarded_speed):
+    """highway_exit seed 7 (epsilon), 46.5 s: the ego and a car that cut in on it 32.6 m behind were in line (centres
+    ≈ 11 mm apart, μ/2 = 50 mm), so the guard was owed nothing; the car turned right at 1.17 m/s and the ego's move
+    right at 0.43 m/s was towards it at 46.6 s (centres ≈ 68 mm apart): responsible. Here, ad_rss (μ 0.1 m): the car
+    30 m behind, its centre 20 mm right of the ego's; the lateral response is owed and settled (bound 0), in line
+    now. Moving right at 0.4 m/s the ego's centre is at −40 mm at t + dt; the car turning right at 1 m/s is then
+    at −20 − 100 = −120 mm, 80 mm to the right of the ego (apart: the auditor judges the 0.4 m/s towards it),
+    standing still at −20 mm, 20 mm to the left (in line: not judged). Moving left the car is to the right either way."""
+    both = _with_car(_ego_alone(20.0), x=270.0, y=-5.25 - 0.02, lane_pos=270.0, lat_pos=-0.02,
+                     speed=20.0, lat_speed=other_lateral_speed)
+    no = np.zeros(1, dtype=bool)
+    in_line_now = OwedResponses(np.array([10.0]), no, no, no, no, no, np.zeros(1), np.array(["car"], object),
+                                np.ones(1, dtype=bool), np.ones(1, dtype=bool), lat_duty=np.ones(1, dtype=bool))
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    done = guard.apply(both, 0, frame, TrajectoryState(302.0, -5.25 + plan_speed * DT, 0.0, 20.0, 0.0), in_line_now)
+    assert (done.y + 5.25) / DT == pytest.approx(guarded_speed, abs=1e-6)
+    assert guard.counts.lat_owed == int(guarded_speed != plan_speed)
+    # The auditor's verdict at t + dt on the guarded move: in line, or no speed towards the car's side.
+    offset = (-0.02 + other_lateral_speed * DT) - (done.y + 5.25)
+    towards = np.sign(offset) * (done.y + 5.25) / DT
+    assert bool(in_line(abs(offset), 0.1, 0.1)) or towards <= 1e-9
+

@@ -5,7 +5,8 @@ Before the planned state for the next step is sent to SUMO it is restricted by
 - the responses the ego owes in its open RSS episodes (from the auditor): no more than a_acc during ρ, at least
   b_min (b_corr) braking after ρ until stopped and then no moving off while the episode lasts (it would owe
   braking again at once), never harder than b_max where the ego is the front car, and a
-  lateral speed towards the other car inside its braking envelope;
+  lateral speed towards the other car inside its braking envelope, towards the side the auditor will judge at
+  the step planned (the cars as they will be then, in line or not);
 - two predictive rules that keep the ego from *entering* danger by its own motion: no acceleration while the
   gap to a car ahead in its path is not RSS-safe (where the ego owes that car no longitudinal braking, e.g. it
   cut in, the ego may keep up with it but not close in), and no lateral motion that would make a pair
@@ -26,7 +27,7 @@ import numpy as np
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
-from ..rss.responsibility import OwedResponses, lateral_speed_bound
+from ..rss.responsibility import OwedResponses, in_line, lateral_speed_bound
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
 from .road_frame import RoadFrame
@@ -178,18 +179,24 @@ class ProperResponseGuard:
         bumper_d0 = float(d[me]) + half * np.sin(float(h[me]))
         u_plan = (d1 + half * np.sin(h1) - bumper_d0) / dt  # + = left
         u_planned = u_plan
-        if np.any(owed.owed_lat):
-            side = np.where(owed.other_is_left, 1.0, -1.0)[owed.owed_lat]
-            t_lat = tau[owed.owed_lat]
+        duty = np.asarray(owed.lat_duty, dtype=bool)
+        if np.any(duty):
             # The auditor's envelope with ACCEL_MARGIN kept inside both of its accelerations.
-            bound = np.where(owed.lat_settled[owed.owed_lat], 0.0,
-                             lateral_speed_bound(owed.u0[owed.owed_lat], t_lat, rho,
-                                                 float(p_e.lat_accel_max[0]) - ACCEL_MARGIN,
+            bound = np.where(owed.lat_settled, 0.0,
+                             lateral_speed_bound(owed.u0, tau, rho, float(p_e.lat_accel_max[0]) - ACCEL_MARGIN,
                                                  float(p_e.lat_brake_min[0]) + ACCEL_MARGIN))
-            for sd, b in zip(side, bound):
-                if sd * u_plan > b:
-                    c.lat_owed += int(sd * u_plan > b + COUNT_TOLERANCE)
-                    u_plan = sd * b
+            sides = _SidesAtNextStep(owed, duty, snapshot, p_all, near, d, u_planned, d1, dt,
+                                     float(p_e.lat_fluctuation_margin[0]))
+            # Each restriction moves the ego away from a side (towards 0 lateral speed, never past it), which can
+            # only end an in-line exemption: repeated until the sides judged after the move stand.
+            for _ in range(len(owed) + 1):
+                left, right = sides.judged(u_plan)
+                limited = float(np.clip(u_plan, -np.min(bound[right], initial=np.inf),
+                                        np.min(bound[left], initial=np.inf)))
+                if limited == u_plan:
+                    break
+                u_plan = limited
+            c.lat_owed += int(abs(u_plan - u_planned) > COUNT_TOLERANCE)
 
         # 4. No lateral motion into a pair that is longitudinally unsafe.
         if abs(u_plan) > 1e-9:
@@ -226,6 +233,42 @@ class ProperResponseGuard:
         d_new = d1 + (u_plan - u_planned) * dt
         x, y, heading = frame.bumper_at(np.array([s_new]), np.array([d_new]), np.array([h1]), half)
         return TrajectoryState(float(x[0]), float(y[0]), float(heading[0]), v1, (v1 - v0) / dt)
+
+
+class _SidesAtNextStep:
+    """The sides towards which the auditor will judge the ego's lateral speed at the step being planned, per open
+    episode that owes the lateral response, for a lateral speed u [m/s] of the ego's bumper: the side each other car
+    is on then, or none where the two are in line then (responsibility.in_line, the auditor's own test).
+
+    The other car is taken anywhere between where it is and where its present lateral speed takes it over the
+    step (a car in a lane change: its centre moves slower than its bumper while it turns in); every side it can be
+    on apart from the ego there is judged. Another car outside the guard's neighbourhood keeps the side the
+    auditor last saw (in line now: none)."""
+
+    def __init__(self, owed: OwedResponses, duty: np.ndarray, snapshot: WorldSnapshot, p_all: RssParamArrays,
+                 near: np.ndarray, d: np.ndarray, u_planned: float, d1: float, dt: float, mu_ego: float):
+        ids = snapshot.ids[near]
+        order = np.argsort(ids)
+        at = np.minimum(np.searchsorted(ids[order], owed.other_id), len(ids) - 1)
+        found = duty & (ids[order][at] == owed.other_id)
+        k = order[at]
+        d_other = d[k]
+        # Where the other car can be at the next step.
+        self.d_other = np.stack([d_other, d_other + snapshot.lat_speed[near[k]] * dt])
+        self.mu_other, self.mu_ego = p_all.lat_fluctuation_margin[near[k]], mu_ego
+        self.found = found
+        self.fallback_left = duty & ~found & owed.owed_lat & owed.other_is_left
+        self.fallback_right = duty & ~found & owed.owed_lat & ~owed.other_is_left
+        self.u_planned, self.d1, self.dt = u_planned, d1, dt
+
+    def judged(self, u: float) -> tuple[np.ndarray, np.ndarray]:
+        """(towards the left, towards the right) per episode, the ego's bumper moving across at ``u``."""
+        d_ego = self.d1 + (u - self.u_planned) * self.dt  # its centre at the next step
+        offset = self.d_other - d_ego
+        apart = ~in_line(np.abs(offset), self.mu_other, self.mu_ego) & self.found
+        left = np.any(apart & (offset > 0.0), axis=0) | self.fallback_left
+        right = np.any(apart & (offset < 0.0), axis=0) | self.fallback_right
+        return left, right
 
 
 def lateral_safe_distances(other_left: np.ndarray, u_other: Any, u_ego: Any, p_o: RssParamArrays, p_e: RssParamArrays

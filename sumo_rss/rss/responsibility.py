@@ -85,6 +85,13 @@ class OwedResponses:
     other_id: np.ndarray  # the other car's id
     same_direction: np.ndarray  # bool: one car follows the other (same direction or merge)
     lat_settled: np.ndarray  # bool: this car's speed towards the other has been ≤ 0 from ρ on (it must stay there)
+    # bool: the lateral response is owed in the episode, in line now or not (judged at any step where the cars
+    # are apart: ``in_line``); None: as ``owed_lat``
+    lat_duty: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.lat_duty is None:
+            object.__setattr__(self, "lat_duty", self.owed_lat)
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
@@ -106,6 +113,13 @@ class JudgedStep:
     accel_min: np.ndarray  # [m/s²] a ≥ this: −b_max (the front car)
     lat_speed: np.ndarray  # [m/s] the car's lateral speed towards the other
     lat_speed_max: np.ndarray  # [m/s] the lateral response's envelope
+
+
+def in_line(lat_offset: Any, mu_a: Any, mu_b: Any) -> np.ndarray:
+    """Whether two cars whose centres are ``lat_offset`` [m] apart across the road are in line: within μ/2 (the
+    larger μ [m] of the two), where neither side is towards the other and the lateral response is not judged
+    (rss.md, "The lateral duty keeps away from the side the other car is on now"). NaN: False."""
+    return np.asarray(lat_offset) <= 0.5 * np.maximum(mu_a, mu_b)
 
 
 def lateral_speed_bound(u0: Any, tau: Any, rho: Any, a_lat: Any, b_lat: Any) -> np.ndarray:
@@ -213,7 +227,8 @@ class ResponsibilityTracker:
             front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx] & ~e.in_line[idx],
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
-            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car])
+            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car],
+            lat_duty=e.owed_lat[idx])
 
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
@@ -407,10 +422,10 @@ class ResponsibilityTracker:
         if not len(sit) or sit.lat_offset is None:
             return
         offset = np.where(candidate, sit.lat_offset[rows], np.nan)
-        in_line = offset <= 0.5 * mu.max(axis=1)  # NaN (junctions, not a candidate): False
+        lined_up = in_line(offset, mu[:, 0], mu[:, 1])  # NaN (junctions, not a candidate): False
         seen = candidate & np.isfinite(offset)
-        e.in_line = np.where(seen, in_line, e.in_line)
-        e.a_left = np.where(seen & ~in_line, sit.a_is_left[rows], e.a_left)
+        e.in_line = np.where(seen, lined_up, e.in_line)
+        e.a_left = np.where(seen & ~lined_up, sit.a_is_left[rows], e.a_left)
 
     def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
                          t: float, grace: np.ndarray) -> None:
