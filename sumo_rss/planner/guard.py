@@ -28,6 +28,7 @@ from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
 from ..rss.responsibility import OwedResponses, in_line, lateral_speed_bound
+from ..rss.sorted_keys import find_sorted
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
 from .road_frame import RoadFrame
@@ -249,8 +250,8 @@ class _SidesAtNextStep:
                  near: np.ndarray, d: np.ndarray, u_planned: float, d1: float, dt: float, mu_ego: float):
         ids = snapshot.ids[near]
         order = np.argsort(ids)
-        at = np.minimum(np.searchsorted(ids[order], owed.other_id), len(ids) - 1)
-        found = duty & (ids[order][at] == owed.other_id)
+        found, at = find_sorted(ids[order], owed.other_id)
+        found &= duty
         k = order[at]
         d_other = d[k]
         # Where the other car can be at the next step.

@@ -7,6 +7,7 @@ Vehicle sizes come from a vType/route file or SUMO's defaults; collisions from S
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import warnings
@@ -386,19 +387,18 @@ class FcdReader:
         lane_pos, lat_pos = optional("pos"), optional("posLat")
         accel, lat_speed = optional("acceleration"), optional("speedLat")
         signals = _numbers(step, "signals", where, integer=SIGNALS_FORM, default="0")
-        projected = []  # the projections, once the values they need are checked
 
-        def project() -> tuple[tuple | None, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-            projected.append(self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
-                                               lat_speed is None))
-            return projected[0]
+        @functools.cache  # made once, after check_step has checked the values they need (inside it or after it)
+        def projections() -> tuple[tuple | None, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+            return self._projections(lane, x, y, heading, length, lane_pos is None or lat_pos is None,
+                                     lat_speed is None)
 
         check_step(where, time, self._prev_time, StepValues(ids, lane, x, y, angle, speed, lane_pos, lat_pos, accel,
                                                             lat_speed, signals), self.network,
-                   (lambda: np.abs(project()[0][1])) if lane_pos is None or lat_pos is None else None)
+                   (lambda: np.abs(projections()[0][1])) if lane_pos is None or lat_pos is None else None)
         if self._resolution is None and len(step) and not step.has("speedLat"):
             self._resolution = self._lateral_resolution(step.column("x"), lat_pos is not None)
-        fronts, centres = projected[0] if projected else project()
+        fronts, centres = projections()
         if fronts is not None:  # SUMO's pos and posLat are those of the front-bumper centre
             s_f, d_f, _ = fronts
             # SUMO measures pos along the lane's own length (with elevation), not its 2-D shape's.
