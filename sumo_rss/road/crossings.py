@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .frenet import LaneShapes
-from .junctions import _RANK_OF_BYTE, JunctionModel, _path_polyline
+from .junctions import RANK_OF_BYTE, JunctionModel, path_polyline
 from .link_pairs import expand_ranges
 from .model_cache import cached
 from .net_file import read_net
@@ -65,7 +65,7 @@ class CrossingModel:
         chars = np.frombuffer("".join(states).encode("ascii", "replace"), dtype=np.uint8)
         known = self.tls_index[k] < length[number]
         at = (np.cumsum(length) - length)[number[known]] + self.tls_index[k[known]]
-        out[k[known]] = _RANK_OF_BYTE[chars[at]]
+        out[k[known]] = RANK_OF_BYTE[chars[at]]
         return out
 
     @classmethod
@@ -109,7 +109,7 @@ class CrossingModel:
                 vehicle_yields = node._prohibits[v][n - 1 - index] == "1"
                 person_yields = node._prohibits[index][n - 1 - v] == "1"
                 pairs.append((k, c, int(person_yields) - int(vehicle_yields)))
-        paths = [_path_polyline(link.path, network) for link in junctions.links]
+        paths = [path_polyline(link.path, network) for link in junctions.links]
         paths += [network.shapes.points[lane, : network.shapes.count[lane]] for _, lane, *_ in crossings]
         widths = np.concatenate([[float(network.lane_width[link.path[0]]) for link in junctions.links],
                                  [float(network.lane_width[lane]) for _, lane, *_ in crossings]])

@@ -21,9 +21,9 @@ from .network import RoadNetwork
 from .strip_overlap import strip_overlaps
 
 SIGNAL_RANK = {"G": 2, "g": 1}  # every other state ('y', 'r', 'u', 'o', 's', ...) ranks 0
-_RANK_OF_BYTE = np.zeros(256, dtype=int)  # SIGNAL_RANK by the state character's (ASCII) byte
+RANK_OF_BYTE = np.zeros(256, dtype=int)  # SIGNAL_RANK by the state character's (ASCII) byte
 for _state, _rank in SIGNAL_RANK.items():
-    _RANK_OF_BYTE[ord(_state)] = _rank
+    RANK_OF_BYTE[ord(_state)] = _rank
 
 
 @dataclass(frozen=True)
@@ -182,7 +182,7 @@ class JunctionModel:
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
         chars = self.signal_chars(tls_states)
-        return np.where(chars > 0, _RANK_OF_BYTE[chars], -1)
+        return np.where(chars > 0, RANK_OF_BYTE[chars], -1)
 
     def signal_chars(self, tls_states: dict[str, str] | None) -> np.ndarray:
         """[L] uint8: every link's current signal state character (its ASCII byte); 0 if unsignalised or unknown."""
@@ -209,7 +209,8 @@ def _internal_path(via: int, network: RoadNetwork) -> tuple[int, ...]:
         path.append(nxt[0])
 
 
-def _path_polyline(path: tuple[int, ...], network: RoadNetwork) -> np.ndarray:
+def path_polyline(path: tuple[int, ...], network: RoadNetwork) -> np.ndarray:
+    """The centre line [m] of the lanes of ``path`` in order, as one (n, 2) polyline."""
     pts = []
     for lane in path:
         shape = network.shapes.points[lane, : network.shapes.count[lane]]
@@ -219,7 +220,7 @@ def _path_polyline(path: tuple[int, ...], network: RoadNetwork) -> np.ndarray:
 
 def _conflict_areas(links: list[Link], network: RoadNetwork, foes: dict[str, list[str]],
                     prohibits: dict[str, list[str]]) -> list[ConflictArea]:
-    polylines = [_path_polyline(link.path, network) for link in links]
+    polylines = [path_polyline(link.path, network) for link in links]
     widths = np.array([float(network.lane_width[link.path[0]]) for link in links])
     by_junction: dict[str, list[int]] = {}
     for k, link in enumerate(links):
