@@ -89,10 +89,15 @@ class OwedResponses:
     # bool: the lateral response is owed in the episode, in line now or not (judged at any step where the cars
     # are apart: ``in_line``); None: as ``owed_lat``
     lat_duty: np.ndarray | None = None
+    # bool: the braking is owed from t_b, without a response time (moved off from standing, moving_off.py); None:
+    # never
+    no_response_time: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.lat_duty is None:
             object.__setattr__(self, "lat_duty", self.owed_lat)
+        if self.no_response_time is None:
+            object.__setattr__(self, "no_response_time", np.zeros(len(self.t_b), dtype=bool))
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
@@ -231,7 +236,7 @@ class ResponsibilityTracker:
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
             same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car],
-            lat_duty=e.owed_lat[idx])
+            lat_duty=e.owed_lat[idx], no_response_time=e.moved_off[idx, car])
 
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
