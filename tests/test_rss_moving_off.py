@@ -95,7 +95,6 @@ def test_a_priority_car_that_arrives_when_the_creeping_car_could_no_longer_stop_
 
 def test_a_car_that_stands_short_of_the_area_while_the_priority_car_passes_is_no_episode(network):
     """s stands 0.011 m short of the area for 2 s while w (20 m away at 0 s, unable to stop) drives through: s is
-    able to stop all along, and nobody owes anything (plain ad_rss: an episode from 0 s, both owing braking, and w,
-    driving on, responsible)."""
+    able to stop all along, and nobody owes anything (plain ad_rss: an episode from 0 s, both owing braking)."""
     result = _audit(network, 20.0, 21, move_off=10.0)
     assert result.episodes.empty and result.violations.empty
