@@ -1,6 +1,8 @@
 """The RSS proper-response guard on the executed ego command (rss.md §5 restrictions)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -50,6 +52,18 @@ def test_after_the_response_time_the_owed_braking_is_enforced_and_a_stopped_ego_
                        OwedResponses(*(np.zeros(0, dtype=a.dtype) for a in vars(owed).values())))
     assert free.speed == pytest.approx(0.3)  # nothing owed: it may go
     assert guard.counts.lon_owed == 2
+
+
+def test_braking_owed_without_a_response_time_is_enforced_at_once(frame):
+    """A car that moved off from standing into a junction danger owes its braking from t_b (rss/moving_off.py): 0.1 s
+    after t_b, within what would be its ρ (1 s), the plan's 5 m/s² becomes the owed −4 m/s² (−4.1 with the guard's
+    margin); with the response time it may still accelerate up to a_acc 3.5 (3.4)."""
+    guard = ProperResponseGuard(ParamResolver("ad_rss"), DT)
+    planned = TrajectoryState(300.6, -5.25, 0.0, 3.5, 5.0)
+    for at_once, accel in ((True, -4.1), (False, 3.4)):
+        owed = replace(_owing_brake(t_b=20.0), no_response_time=np.array([at_once]))
+        done = guard.apply(_ego_alone(3.0), 0, frame, planned, owed)
+        assert done.speed == pytest.approx(3.0 + accel * DT)
 
 
 def _owing_lateral(t_b: float, u0: float, other_is_left: bool, settled: bool = False) -> OwedResponses:

@@ -269,27 +269,28 @@ def test_a_crossing_within_one_step_past_the_junction_lane_is_judged(tmp_path):
 
 def test_the_area_a_pair_becomes_dangerous_in_decides_who_yields(tmp_path):
     """An offline audit without routes: every link of a car's lane is a possible path, and e (E_in, westbound,
-    13.89 m/s) and w (W_in, standing before its line) meet in five conflict areas. At 0 s every area is safe by
+    13.89 m/s) and w (W_in, creeping at 0.01 m/s before its line: a standing car would be held, able to stop
+    anywhere short of the areas) meet in five conflict areas. At 0 s every area is safe by
     'able to stop'; the kept (most critical) one is J:4x11 (e straight x w left: w yields, margin 0.2 m), while in
     J:5x10 (e left x w straight: e yields) e's margin is 0.5 m (D = 13.89 + 1.75 + 17.39²/8 = 53.44 m, +λ 0.2 m).
     At 0.1 s e is 1.39 m nearer: J:5x10 is dangerous (margin -0.89 m), and e, which had to yield there, owes
     braking; it keeps 13.89 m/s and is responsible from t_b + ρ + 0.1 s. The duties used to come from J:4x11
     (w yields: w owed braking, nobody responsible). With w's route known (J:5x10 alone) the audit is the same."""
     network = RoadNetwork.from_file(NETWORKS / "intersection_priority" / "intersection_priority.net.xml")
-    p, v = RssParams(), 13.89
+    p, v, creep = RssParams(), 13.89, 0.01
     # Bumpers placed so that w's margin in J:4x11 is 0.2 m and e's in J:5x10 0.5 m (each area begins 0.2 m into
     # the car's link, the links begin 7.2 m from the junction's centre).
-    d_w = float(lon_reach(0.0, p, p.lon_brake_min))
+    d_w = float(lon_reach(creep, p, p.lon_brake_min))
     d_e = float(lon_reach(v, p, p.lon_brake_min)) + 0.3
 
     def snapshot(t: float, routes) -> WorldSnapshot:
-        ahead = d_e - v * t
+        ahead, behind = d_e - v * t, d_w - creep * t
         return WorldSnapshot(
-            time=t, ids=np.array(["e", "w"]), x=np.array([7.2 + ahead, -7.2 - d_w]), y=np.array([1.6, -1.6]),
-            heading=np.array([np.pi, 0.0]), speed=np.array([v, 0.0]), accel=np.zeros(2), lat_speed=np.zeros(2),
+            time=t, ids=np.array(["e", "w"]), x=np.array([7.2 + ahead, -7.2 - behind]), y=np.array([1.6, -1.6]),
+            heading=np.array([np.pi, 0.0]), speed=np.array([v, creep]), accel=np.zeros(2), lat_speed=np.zeros(2),
             length=np.full(2, 5.0), width=np.full(2, 1.8), lane_id=np.array(["E_in_0", "W_in_0"]),
             edge_id=np.array(["E_in", "W_in"]), lane_index=np.zeros(2, int),
-            lane_pos=np.array([292.8 - ahead, 292.8 - d_w]), lat_pos=np.zeros(2),
+            lane_pos=np.array([292.8 - ahead, 292.8 - behind]), lat_pos=np.zeros(2),
             vclass=np.array(["background"] * 2), vtype=np.array(["car"] * 2), signals=np.zeros(2, int),
             route_index=np.zeros(2, int), route_edges=routes)
 

@@ -119,9 +119,10 @@ class ProperResponseGuard:
         tau = t_next - owed.t_b
         rho, a_acc = float(p_e.response_time[0]), float(p_e.lon_accel_max[0])
         upper, lower = np.inf, -np.inf
-        if np.any(owed.must_brake & (tau <= rho + 1e-9)):
+        rho_owed = np.where(owed.no_response_time, 0.0, rho)  # none after moving off from standing (moving_off.py)
+        if np.any(owed.must_brake & (tau <= rho_owed + 1e-9)):
             upper = a_acc - ACCEL_MARGIN
-        late = owed.must_brake & (tau > rho + 1e-9)
+        late = owed.must_brake & (tau > rho_owed + 1e-9)
         if np.any(late) and v0 >= STOPPED:
             brake = np.where(owed.brake_correct[late], p_e.lon_brake_min_correct[0], p_e.lon_brake_min[0])
             upper = min(upper, -float(brake.max()) - ACCEL_MARGIN)

@@ -93,8 +93,12 @@ class ParamResolver:
     def hold(self, table: RssParamArrays, speed: np.ndarray) -> RssParamArrays:
         """``table`` (:meth:`arrays` or :meth:`of`, not held) with ``hold_standing`` applied, for road users at
         ``speed`` [m/s]."""
-        if not self.hold_standing:
-            return table
+        return self.held_standing(table, speed) if self.hold_standing else table
+
+    @staticmethod
+    def held_standing(table: RssParamArrays, speed: np.ndarray) -> RssParamArrays:
+        """``table`` with a_acc = 0 for the road users standing still (``speed`` [m/s] exactly 0): what junction
+        situations always use (:mod:`.moving_off`), and every situation with ``hold_standing``."""
         return replace(table, lon_accel_max=np.where(speed == 0.0, 0.0, table.lon_accel_max))
 
 
@@ -220,8 +224,10 @@ class Auditor:
         uid = np.array(known, dtype=np.int64)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         horizon = 2.0 * float(frame.reach.max(initial=0.0)) + 20.0
-        crossing = intersection_situations(snapshot, frame, self.network, self.junctions, horizon=horizon) \
-            if self.junctions.conflicts else None
+        # At junctions a standing car is held (a_acc = 0) whatever hold_standing says (docs/rss.md, moving_off.py).
+        crossing = intersection_situations(
+            snapshot, replace(frame, params=self.params.held_standing(moving, snapshot.speed)), self.network,
+            self.junctions, horizon=horizon) if self.junctions.conflicts else None
         number = np.searchsorted(self._area_ids, crossing.area.astype(str)) if crossing is not None else None
         walking = self._persons.situations(snapshot, frame, users, horizon)
         if walking is not None:  # persons on crossings: junction situations of their own areas

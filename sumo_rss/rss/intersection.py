@@ -30,7 +30,7 @@ from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
 from .formulas import is_safe_distance, lon_reach, lon_safe_distance_same_dir, time_to_cover
-from .junction_exits import leaving_entries
+from .junction_exits import with_leaving
 from .params import PARAM_NAMES, RssParamArrays
 from .situations import SITUATION_CODES, PairSituations, SituationType, VehicleFrame
 
@@ -192,11 +192,9 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     on an approach lane with the link to their route's next edge (every link from their lane when the route is
     unknown), already on the link's internal lanes, or leaving it with the rear bumper still on them
     (:mod:`.junction_exits`)."""
-    rows, links, pos = junction_entries(frame.lane, frame.lane_pos, None, network, junctions, horizon,
-                                        JUNCTIONS_AHEAD, frame.route_edges)
-    leaving = leaving_entries(snapshot, frame.lane, frame.lane_pos, network, junctions)
-    if leaving[0].size:  # cars whose rear is still on the link they came by
-        rows, links, pos = (np.concatenate(pair) for pair in zip((rows, links, pos), leaving))
+    rows, links, pos = with_leaving(junction_entries(frame.lane, frame.lane_pos, None, network, junctions, horizon,
+                                                     JUNCTIONS_AHEAD, frame.route_edges),
+                                    snapshot, frame.lane, frame.lane_pos, network, junctions)
     from .junction_kernel import junction_pairs  # numba: only where junctions are
 
     table, pairs = junctions.conflict_pairs, junctions.conflict_pairs.pairs

@@ -50,6 +50,18 @@ def exit_links(junctions: JunctionModel) -> ExitLinks:
                      from_lane=np.array([link.from_lane for link in junctions.links], dtype=np.int64))
 
 
+def with_leaving(entries: tuple[np.ndarray, np.ndarray, np.ndarray], snapshot: WorldSnapshot, lane: np.ndarray,
+                 lane_pos: np.ndarray, network: RoadNetwork, junctions: JunctionModel
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``entries`` (vehicle rows, links, positions along the links' paths [m]) followed by the
+    :func:`leaving_entries` of the step's cars."""
+    leaving = leaving_entries(snapshot, lane, lane_pos, network, junctions)
+    if not leaving[0].size:
+        return entries
+    rows, links, pos = (np.concatenate(pair) for pair in zip(entries, leaving))
+    return rows, links, pos
+
+
 def leaving_entries(snapshot: WorldSnapshot, lane: np.ndarray, lane_pos: np.ndarray, network: RoadNetwork,
                     junctions: JunctionModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Entries (vehicle row, link, front bumper along the link's path [m]) of the cars on a normal lane (``lane``,

@@ -37,6 +37,7 @@ class OpenEpisodes:
     t_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
     window: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [s] the pair's ρ: how long it may be joined
     must_brake: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
+    moved_off: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))  # owes braking from t_b
     front_limited: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
     brake_correct: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=bool))
     owed_lat: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))

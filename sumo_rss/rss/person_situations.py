@@ -29,6 +29,7 @@ from ..sim.persons import PersonSnapshot
 from ..sim.snapshot import WorldSnapshot
 from .intersection import junction_entries, next_route_edge
 from .jaywalking import AREA_ID as JAYWALK_AREA, jaywalking_situations
+from .junction_exits import with_leaving
 from .params import PARAM_NAMES, RssParamArrays
 from .person_pairs import Side, vehicle_person_situations
 from .situations import PairSituations, VehicleFrame
@@ -150,9 +151,12 @@ class PersonAudit:
         walking, crossing, s, forward, v_along = self._on_crossings(persons)
         if not walking.size:
             return None
-        # Vehicles' entries into links, and their crossing areas with a person on that crossing.
-        rows, links, pos = junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge),
-                                            self.network, self.junctions, horizon)
+        # Vehicles' entries into links (also a car leaving the junction whose rear is still on its link, as in
+        # intersection_situations), and their crossing areas with a person on that crossing.
+        rows, links, pos = with_leaving(
+            junction_entries(frame.lane, frame.lane_pos, next_route_edge(frame.route_edges, frame.edge), self.network,
+                             self.junctions, horizon), snapshot, frame.lane, frame.lane_pos, self.network,
+            self.junctions)
         entry, k = model.areas_of_links(links)
         by_crossing = np.argsort(crossing, kind="stable")
         on = crossing[by_crossing]

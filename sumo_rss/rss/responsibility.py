@@ -18,6 +18,7 @@ from .params import RssParamArrays
 from .duties import duties_at_threshold
 from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
+from .moving_off import StandingCars
 from .sorted_keys import find_sorted
 from .records import EVASIVE_CONSTRAINT, OCCLUSION_CONSTRAINT, RULE5_UNCHECKED
 from ..road_users import PERSON_CLASS
@@ -88,10 +89,15 @@ class OwedResponses:
     # bool: the lateral response is owed in the episode, in line now or not (judged at any step where the cars
     # are apart: ``in_line``); None: as ``owed_lat``
     lat_duty: np.ndarray | None = None
+    # bool: the braking is owed from t_b, without a response time (moved off from standing, moving_off.py); None:
+    # never
+    no_response_time: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.lat_duty is None:
             object.__setattr__(self, "lat_duty", self.owed_lat)
+        if self.no_response_time is None:
+            object.__setattr__(self, "no_response_time", np.zeros(len(self.t_b), dtype=bool))
 
     def __len__(self) -> int:
         return int(self.t_b.shape[0])
@@ -158,6 +164,7 @@ class ResponsibilityTracker:
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._last_time: float | None = None
+        self._standing = StandingCars()
         self._next_serial = 0
         self.serial_keys: dict[int, str] = {}  # serial → episode key of every closed episode
         self.judged: JudgedStep | None = None  # the bounds of the last step (None: no episode was judged)
@@ -202,6 +209,7 @@ class ResponsibilityTracker:
         self._prev_rules = sit.safe_rules[order]
         self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
         self._prev_by_signal = sit.kind[order] == KIND_SIGNAL
+        self._standing.update(step.uids, step.speed)
         self._last_time = step.time
 
     @property
@@ -228,7 +236,7 @@ class ResponsibilityTracker:
             other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
             other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
             same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car],
-            lat_duty=e.owed_lat[idx])
+            lat_duty=e.owed_lat[idx], no_response_time=e.moved_off[idx, car])
 
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
@@ -298,6 +306,14 @@ class ResponsibilityTracker:
         u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
                               np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
         n = len(keys)
+        # A car that owes braking at a junction and moved off from standing short of the area owes it at once.
+        enter = np.column_stack([sit.enter_a[rows], sit.enter_b[rows]]) if sit.enter_a is not None \
+            else np.full((n, 2), np.nan)
+        moved_off = duties.must_brake & (sit.kind[rows] >= FIRST_INTERSECTION_CODE)[:, None] & \
+            self._standing.moved_off(np.column_stack([step.uids[a], step.uids[b]]),
+                                     np.column_stack([step.vclass[a], step.vclass[b]]), enter,
+                                     np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]),
+                                     step.time - self._last_time if self._last_time is not None else 0.0)
         serials = np.arange(self._next_serial, self._next_serial + n, dtype=np.int64)
         for r, k in enumerate(keys.tolist()):
             held = self._log.resume(k, step.time)
@@ -313,7 +329,8 @@ class ResponsibilityTracker:
             a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
             kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
             window=np.maximum(step.params.response_time[a], step.params.response_time[b]),
-            must_brake=duties.must_brake, front_limited=duties.front_limited, brake_correct=duties.brake_correct,
+            must_brake=duties.must_brake, moved_off=moved_off, front_limited=duties.front_limited,
+            brake_correct=duties.brake_correct,
             owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
             area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
             a_left=sit.a_is_left[rows], in_line=np.zeros(n, dtype=bool), u0=u0,
@@ -368,11 +385,12 @@ class ResponsibilityTracker:
             e.stopping = np.where(pair, progress["stopping"], e.stopping)
         rho = p.response_time[cars]
         tau = (t - np.minimum(start, t))[:, None]  # 0 while hidden (nothing is judged then)
-        in_response = tau <= rho + TIME_EPS
+        rho_lon = np.where(e.moved_off, 0.0, rho)  # no response time to its own moving off (moving_off.py)
+        in_response = tau <= rho_lon + TIME_EPS
         # The step that ends ρ inside it (ρ not a multiple of the step): its mean acceleration may be a_acc for
         # the part before t_b + ρ and must be −b after it, so its bound is the time-weighted mix of the two.
         dt = t - self._last_time if self._last_time is not None else 0.0
-        before = np.clip((rho - (tau - dt)) / dt, 0.0, 1.0) if dt > 0.0 else np.zeros_like(rho)
+        before = np.clip((rho_lon - (tau - dt)) / dt, 0.0, 1.0) if dt > 0.0 else np.zeros_like(rho)
         braker = e.must_brake
         front = e.front_limited
         brake_needed = np.where(e.brake_correct, p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
