@@ -273,7 +273,8 @@ def test_a_change_under_way_is_not_held_half_way_when_the_rear_car_closes_in(hig
     147 m). The pair's duty is longitudinal (the rear car's), so the barrier does not hold the ego there."""
     _, frame = highway
     p = RssParams()
-    vehicles = _vehicles([200.0, 95.5], [0.0, 3.5], [20.0, 30.0], chain=[CURRENT, LEFT])
+    vehicles = Vehicles(np.array([200.0, 95.5]), np.array([1.0, 3.5]), np.array([0.05, 0.0]), np.array([20.0, 30.0]),
+                        np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.8), np.array([CURRENT, LEFT]))
     rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
                         np.array([[1, LEFT]]), np.array([0.0, 30.0]))
     sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, SimSettings(), p, RssParamArrays.stack([p] * 2))
