@@ -28,7 +28,7 @@ DROP_BACK_M, DROP_BACK_SLOWER = 10.0, 3.0
 # mandatory one seeks a gap.
 STILL_IN_LANE_M, CHANGE_PROGRESS_M = 0.3, 0.5
 # [m/s] A held mandatory change seeks its gap this much slower than the slower of the target lane's nearest cars
-# ahead of and behind the ego, so that the gaps come by (docs/planner.md, "Seeking a gap for a mandatory change").
+# ahead of and behind the ego, so that the gaps come by (docs/planner.md, "highway_exit on seeds 0-19").
 SEEK_SLOWER = 5.0
 
 
