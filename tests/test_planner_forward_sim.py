@@ -307,6 +307,21 @@ def test_the_evasive_speed_up_accelerates_beyond_the_comfort_limit_only_before_a
         assert peak <= settings.ego_limits.max_accel + 1e-9 and sim.speed[0, -1, 0] <= 20.0 + 1e-9
 
 
+def test_without_the_evasive_speed_up_the_ego_keeps_its_comfort_limit_before_an_rss_unsafe_rear_car(highway):
+    """A mandatory change that seeks a gap behind (navigation.seek_speed) turns the speed-up off: the same rear car
+    100 m behind at 30 m/s (RSS-unsafe) no longer speeds the 20 m/s ego up beyond its 1 m/s² limit or its desired
+    speed, and the barrier still holds it in its lane."""
+    _, frame = highway
+    p = RssParams()
+    vehicles = _vehicles([200.0, 95.5], [0.0, 3.5], [20.0, 30.0], chain=[CURRENT, LEFT])
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([20.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, LEFT]]), np.array([0.0, 30.0]))
+    settings = replace(SimSettings(), evasive_speed_up=False)
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, settings, p, RssParamArrays.stack([p] * 2))
+    assert sim.ego_accel[0].max() <= settings.ego_limits.max_accel + 1e-9 and sim.speed[0, -1, 0] <= 20.0 + 1e-9
+    assert sim.barrier_steps[0] > 0 and sim.d[0, -1, 0] < 1.5
+
+
 def _evasive(frame, speed_limit=np.inf, leader_gap=None):
     """The ego at 20 m/s changes left before a 30 m/s car 100 m behind in the target lane (RSS-unsafe: the
     evasive speed-up applies); optionally a 20 m/s car ``leader_gap`` m ahead in the ego's lane."""

@@ -9,11 +9,12 @@ import pytest
 
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.dcp_tree import Action, Lat, Lon, valid_policies
-from sumo_rss.planner.behavior.forward_sim import SimResult
+from sumo_rss.planner.behavior.forward_sim import SimResult, Vehicles
 from sumo_rss.planner.behavior.manager import LaneChangeContext
 from sumo_rss.planner.epsilon import EpsilonPlanner
-from sumo_rss.planner.lanes import lane_chains
-from sumo_rss.planner.navigation import change_stuck, held_sides, mandatory_change
+from sumo_rss.planner.lanes import CURRENT, LEFT, RIGHT, lane_chains
+from sumo_rss.planner.navigation import SEEK_SLOWER, change_held, change_stuck, held_sides, mandatory_change, \
+    seek_speed
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import ParamResolver
@@ -104,3 +105,37 @@ def test_a_due_discretionary_change_that_no_rollout_gets_going_is_called_off():
     assert not change_stuck(replace(due, mandatory=True), 33.0, policies, policy_of, held, 0.0)
     going = [0.6 if p.lateral is Lat.LEFT else 0.1 for p in policies]
     assert not change_stuck(due, 33.0, policies, policy_of, _rollouts_moving(going), 0.0)
+
+
+def test_a_held_mandatory_change_is_held_and_a_change_under_way_is_not():
+    """change_held is the test a mandatory change seeks its gap by: every rollout of its direction < 0.5 m across."""
+    policies = valid_policies(Action(Lon.MAINTAIN, Lat.KEEP, 1.0))
+    policy_of = np.arange(len(policies))
+    right = [-0.1 if p.lateral is Lat.RIGHT else 0.0 for p in policies]
+    assert change_held(Lat.RIGHT, policies, policy_of, _rollouts_moving(right), 0.0)
+    going = [-0.6 if p.lateral is Lat.RIGHT else 0.0 for p in policies]
+    assert not change_held(Lat.RIGHT, policies, policy_of, _rollouts_moving(going), 0.0)
+    assert not change_held(Lat.RIGHT, policies, policy_of, _rollouts_moving(right), -0.4)  # under way
+    # 0.6 m to the left is no progress to the right.
+    left = [0.6 if p.lateral is Lat.LEFT else 0.0 for p in policies]
+    assert change_held(Lat.RIGHT, policies, policy_of, _rollouts_moving(left), 0.0)
+
+
+def _around(s, speed, chain) -> Vehicles:
+    n = len(s)
+    return Vehicles(np.array(s, float), np.zeros(n), np.zeros(n), np.array(speed, float), np.zeros(n), np.zeros(n),
+                    np.full(n, 4.5), np.full(n, 1.8), np.array(chain))
+
+
+def test_a_mandatory_change_seeks_its_gap_slower_than_the_nearest_cars_of_the_target_lane():
+    """The ego at 30 m/s at s = 500; right lane: a 31 m/s car 35 m behind (nearest behind), a 24 m/s car 80 m
+    behind (not the nearest), a 29 m/s car 60 m ahead; a 20 m/s car ahead in the ego's own lane and a 10 m/s car in
+    the left lane do not count: SEEK_SLOWER below min(31, 29) = 29 m/s."""
+    cars = _around([500.0, 465.0, 420.0, 560.0, 530.0, 510.0], [30.0, 31.0, 24.0, 29.0, 20.0, 10.0],
+                   [CURRENT, RIGHT, RIGHT, RIGHT, CURRENT, LEFT])
+    assert seek_speed(cars, Lat.RIGHT) == pytest.approx(29.0 - SEEK_SLOWER)
+    assert seek_speed(cars, Lat.LEFT) == pytest.approx(10.0 - SEEK_SLOWER)
+    alone = _around([500.0, 530.0], [30.0, 20.0], [CURRENT, CURRENT])
+    assert seek_speed(alone, Lat.RIGHT) == np.inf  # nobody in the target lane: nothing to seek
+    crawling = _around([500.0, 480.0], [10.0, 2.0], [CURRENT, RIGHT])
+    assert seek_speed(crawling, Lat.RIGHT) == 0.0

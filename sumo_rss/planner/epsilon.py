@@ -119,6 +119,7 @@ class PlannerStats:
     backups: int = 0
     learned_beliefs: int = 0  # agent intentions given by the intention network (summed over cycles)
     stop_lines: dict[str, int] = field(default_factory=dict)  # cycles per stop-line reason ('' = none)
+    gap_seek_cycles: int = 0  # cycles in which a held mandatory change sought its gap (navigation.seek_speed)
     cycle_times: list[float] = field(default_factory=list)
 
 
@@ -136,6 +137,7 @@ class EpsilonPlanner:
         self.stats = PlannerStats()
         self.frames = PlanningFrames(network)
         self._curvature = 0.0
+        self._seeking: Lat | None = None  # the held mandatory change of the cycle before (navigation.change_held)
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         self.belief = _learned_belief(network, config.output_step * config.replan_every) \
@@ -158,11 +160,15 @@ class EpsilonPlanner:
         key = key_vehicles(snapshot, ego, frame, self._rear_reach(snapshot, ego, all_params))
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
-        v_ref = _reference_speed(frame, vehicles, v_ego, cfg.desired_speed)
+        mandatory = navigation.mandatory_change(frame, float(vehicles.s[0]), v_ego)
+        # A mandatory change that the barrier held in the cycle before seeks its gap: slower than the target lane.
+        seek = navigation.seek_speed(vehicles, mandatory) if mandatory is not None and mandatory is self._seeking \
+            else np.inf
+        self.stats.gap_seek_cycles += int(np.isfinite(seek))
+        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
-        mandatory = navigation.mandatory_change(frame, float(vehicles.s[0]), v_ego)
         probs = self._intentions(frame, key, snapshot)
         horizon = float(sum(policies[0].durations))
         branched = uncertain_agents(probs) & intention_matters(frame, vehicles, key.chain, probs, horizon)
@@ -185,8 +191,11 @@ class EpsilonPlanner:
         cut_in_gap = navigation.cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
-        sim = simulate(frame, vehicles, rollouts, policies[0].durations, cfg.sim, ego_params, params, cfg.sim_step,
+        settings = cfg.sim if np.isinf(seek) else replace(cfg.sim, evasive_speed_up=False)
+        sim = simulate(frame, vehicles, rollouts, policies[0].durations, settings, ego_params, params, cfg.sim_step,
                        s_front + stop.distance, cut_in_gap, area, owed_due)
+        self._seeking = mandatory if mandatory is not None and navigation.change_held(
+            mandatory, policies, policy_of, sim, float(vehicles.d[0])) else None
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:

@@ -9,6 +9,7 @@ import numpy as np
 from ..rss.responsibility import OwedResponses
 from ..sim.snapshot import WorldSnapshot
 from .behavior.dcp_tree import Lat, Policy
+from .behavior.evaluation import TARGET_CHAIN
 from .behavior.forward_sim import SimResult, Vehicles
 from .behavior.key_vehicles import KeyVehicles
 from .behavior.manager import LaneChangeContext
@@ -22,9 +23,13 @@ MANDATORY_REACH_M, MANDATORY_REACH_S = 200.0, 10.0
 # [m] kept beyond the gap a car that cut in left, while its episode's lateral duty holds the ego behind it, where it
 # is slower than the ego's reference speed by DROP_BACK_SLOWER [m/s] or more.
 DROP_BACK_M, DROP_BACK_SLOWER = 10.0, 3.0
-# A discretionary lane change is called off while the ego is within STILL_IN_LANE_M [m] of its lane's centre and no
-# rollout moves it CHANGE_PROGRESS_M [m] towards the target lane within the horizon.
+# A lane change is held while the ego is within STILL_IN_LANE_M [m] of its lane's centre and no rollout moves it
+# CHANGE_PROGRESS_M [m] towards the target lane within the horizon: a discretionary one is then called off, a
+# mandatory one seeks a gap.
 STILL_IN_LANE_M, CHANGE_PROGRESS_M = 0.3, 0.5
+# [m/s] A held mandatory change seeks its gap this much slower than the slower of the target lane's nearest cars
+# ahead of and behind the ego, so that the gaps come by (docs/planner.md, "highway_exit on seeds 0-19").
+SEEK_SLOWER = 5.0
 
 
 def mandatory_change(frame: RoadFrame, s_ego: float, v: float) -> Lat | None:
@@ -78,16 +83,40 @@ def cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles, o
     return np.concatenate([[np.inf], np.where(ahead, np.where(holding, gap + DROP_BACK_M, gap), np.inf)])
 
 
+def change_held(direction: Lat, policies: list[Policy], policy_of: np.ndarray, sim: SimResult, offset: float) -> bool:
+    """Whether a lane change towards ``direction`` has not begun (the ego within STILL_IN_LANE_M of its lane's
+    centre, ``offset`` [m]) and no rollout of that direction gets going within the horizon (CHANGE_PROGRESS_M towards
+    the target lane): the virtual barrier holds every one of them (the gap is not RSS-safe)."""
+    if abs(offset) > STILL_IN_LANE_M:
+        return False
+    side = 1.0 if direction is Lat.LEFT else -1.0
+    mine = np.flatnonzero(np.isin(policy_of, [k for k, p in enumerate(policies) if p.lateral is direction]))
+    return bool(mine.size) and not np.any(side * (sim.d[mine, -1, 0] - sim.d[mine, 0, 0]) >= CHANGE_PROGRESS_M)
+
+
 def change_stuck(context: LaneChangeContext | None, now: float, policies: list[Policy], policy_of: np.ndarray,
                  sim: SimResult, offset: float) -> bool:
-    """Whether to call off the discretionary lane change of ``context``: it is due but has not begun (the ego within
-    STILL_IN_LANE_M of its lane's centre, ``offset`` [m]), and no rollout of its direction gets going within the
-    horizon (CHANGE_PROGRESS_M towards the target lane): the virtual barrier holds every one of them (the gap is not
-    RSS-safe). Its recommended reward (epsilon.md §4.1) would otherwise keep the ego "changing" beside the gap until
-    the context expires 15 s after its operation time, and a pure lane keep is not in the tree meanwhile. A
-    mandatory change keeps waiting for its gap."""
-    if context is None or context.mandatory or now < context.operation_time - 1e-9 or abs(offset) > STILL_IN_LANE_M:
+    """Whether to call off the discretionary lane change of ``context``: it is due but held
+    (:func:`change_held`). Its recommended reward (epsilon.md §4.1) would otherwise keep the ego "changing" beside
+    the gap until the context expires 15 s after its operation time, and a pure lane keep is not in the tree
+    meanwhile. A mandatory change keeps waiting for its gap (:func:`seek_speed`)."""
+    if context is None or context.mandatory or now < context.operation_time - 1e-9:
         return False
-    side = 1.0 if context.direction is Lat.LEFT else -1.0
-    mine = np.flatnonzero(np.isin(policy_of, [k for k, p in enumerate(policies) if p.lateral is context.direction]))
-    return bool(mine.size) and not np.any(side * (sim.d[mine, -1, 0] - sim.d[mine, 0, 0]) >= CHANGE_PROGRESS_M)
+    return change_held(context.direction, policies, policy_of, sim, offset)
+
+
+def seek_speed(vehicles: Vehicles, direction: Lat) -> float:
+    """[m/s] The speed at which a held mandatory change towards ``direction`` seeks its gap: SEEK_SLOWER below the
+    slower of the nearest cars ahead of and behind the ego (column 0 of ``vehicles``) in the target lane (inf: no car
+    there). Beside the target lane's traffic at its speed the gap beside the ego never changes, and under RSS it is
+    rarely long enough (~240 m at 30 m/s under ad_rss); slower, the ego lets the cars pass until a gap behind them
+    is RSS-safe, and being slower than the cars around the gap shortens the gap it needs (the rear car's distance
+    grows, the front car's falls faster). The evasive speed-up into the nearest gap (epsilon.md §3.6) is off
+    meanwhile: it would keep the ego beside the car it cannot cut in front of."""
+    target = TARGET_CHAIN[direction]
+    ds = vehicles.s[1:] - vehicles.s[0]
+    in_lane = vehicles.chain[1:] == target
+    speeds = vehicles.speed[1:]
+    nearest = [speeds[side][np.argmin(np.abs(ds[side]))] for side in (in_lane & (ds >= 0.0), in_lane & (ds < 0.0))
+               if np.any(side)]
+    return max(min(nearest) - SEEK_SLOWER, 0.0) if nearest else np.inf

@@ -52,6 +52,7 @@ class SimSettings:
     evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe (IDM a, limit)
     evasive_headway: float = 0.6  # [s] the ego's IDM T while it speeds up
     evasive_extra_speed: float = 10.0  # [m/s] its desired speed: the rear car's RSS-safe minimum plus this
+    evasive_speed_up: bool = True  # False: no evasive speed-up (a mandatory change seeking a gap behind)
     inflation: float = 0.1  # [m] added to length and width in the strict collision check
     lane_end_margin: float = 20.0  # [m] a lane that ends is a stopped leader this far before its end (room to merge)
     commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
@@ -220,7 +221,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         junction_area is not None, owed_brake_due is not None)
     gs = GapSettings(settings.gap_speed_gain, settings.preferred_blend, settings.track_speed_gain,
                      settings.track_pos_gain, settings.evasive_accel, settings.evasive_extra_speed,
-                     settings.commit_time)
+                     settings.commit_time, settings.evasive_speed_up)
     f64, i64 = np.float64, np.int64
     vehicle_samples, ego_samples, valid, barrier_steps = run(
         _c(t, f64), _c(layer_end, i64), firsts, parents, inverses, counts, _c(state, f64), _c(vehicles.length, f64),

@@ -26,6 +26,7 @@ class GapSettings(NamedTuple):
     evasive_accel: float
     evasive_extra_speed: float
     commit_time: float
+    evasive: bool
 
 
 @jitable
@@ -92,7 +93,7 @@ def lane_change_command(f: int, r: int, has_f: bool, has_r: bool, s: np.ndarray,
     d_min_f = formulas.combine_same_dir(reach_e, formulas.stopping_distance(v_f, front_f.lon_brake_max),
                                         rear_e.min_lon_gap)
     gap_r, gap_f = s_e - half - s_ref_r, s_ref_f - s_e - half
-    too_slow = has_r and not formulas.is_safe_distance(gap_r, d_min_r)
+    too_slow = st.evasive and has_r and not formulas.is_safe_distance(gap_r, d_min_r)
     if too_slow:
         cmd = np.maximum(cmd, v_e + st.evasive_accel * dt)
     # Beside the rear car (a gap below its λ) no speed is safe yet: speed up as for a gap of λ, which opens as it goes.
