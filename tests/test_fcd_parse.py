@@ -40,7 +40,7 @@ def _ours(path: Path) -> tuple[list[tuple], int]:
         parser = FcdParser(source)
         assert parser.read_root() == "fcd-export"
         for step in parser:
-            fast += step._count is not None
+            fast += step._scanned is not None
             persons = [dict(zip(p[0::2], p[1::2])) for p in step.persons]
             steps.append((step.time, step.rows(), persons, step.unaudited))
             assert step.column("id") == tuple(r.get("id") for r in step.rows())

@@ -566,7 +566,12 @@ def _numbers(step: FcdStep, name: str, where: str, *, integer: str = "", default
     of its integers, as integers), ``default`` where a vehicle lacks it (None: required); FcdError naming the
     vehicle and the value."""
     kind = int if integer else float
+    exact = None if integer else step.numbers(name)
+    if exact is not None:  # plain decimals: finite
+        return exact
     column = step.column(name)
+    if default is not None and column.count(None) == len(column):  # no vehicle has it (SUMO's signals by default)
+        return np.full(len(column), kind(default))
     try:
         if default is not None and not step.has(name):
             column = tuple(default if v is None else v for v in column)
