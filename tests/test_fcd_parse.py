@@ -40,7 +40,7 @@ def _ours(path: Path) -> tuple[list[tuple], int]:
         parser = FcdParser(source)
         assert parser.read_root() == "fcd-export"
         for step in parser:
-            fast += step._count is not None
+            fast += step._scanned is not None
             persons = [dict(zip(p[0::2], p[1::2])) for p in step.persons]
             steps.append((step.time, step.rows(), persons, step.unaudited))
             assert step.column("id") == tuple(r.get("id") for r in step.rows())
@@ -133,3 +133,27 @@ def test_a_file_cut_inside_a_step_ends_with_expats_error_after_the_last_complete
     path.write_text(text[:text.index('<timestep time="4.00">') + 100])
     read, ours = _times_until_error(path)
     assert read[-1] == "3.90" and len(read) == 40 and "unclosed token" in str(ours)
+
+
+def _read_step_with_xs(path: Path, xs: list[str]):
+    """Step 1 of an FCD whose cars' x values are ``xs`` (as written), read by the parser."""
+    body = "".join(_vehicle(k, 1).replace(f'x="{100.0 + k + 0.1:.6f}"', f'x="{x}"') for k, x in enumerate(xs))
+    path.write_text(_fcd(3, {1: _step(1, body)}))
+    with open(path, "rb") as source:
+        parser = FcdParser(source)
+        parser.read_root()
+        return list(parser)[1]
+
+
+def test_plain_decimals_read_fast_are_the_floats_python_reads_and_other_forms_are_left_to_float(tmp_path):
+    plain = ["1518.380000", "-0.000000", "0", "7.", ".5", "-12.345678", "123456789012345", "0.1", "99999999999999.9",
+             "-33.333333"]  # signs, no point, a point at either end, 15 digits
+    step = _read_step_with_xs(tmp_path / "fcd.xml", plain)
+    assert step._scanned is not None and step.column("x") == tuple(plain)
+    values = step.numbers("x")
+    assert values is not None and [v.hex() for v in values.tolist()] == [float(v).hex() for v in plain]
+    assert str(values[1]) == "-0.0" and step.numbers("speed").tolist() == [10.0 + k for k in range(len(plain))]
+    assert step.numbers("nothing") is None
+    for other in ("1e-07", "1234567890123456", "+1.5", "0x10", "inf"):  # not plain decimals: float reads the column
+        step = _read_step_with_xs(tmp_path / "fcd.xml", ["1.5", other])
+        assert step._scanned is not None and step.column("x") == ("1.5", other) and step.numbers("x") is None

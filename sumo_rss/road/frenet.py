@@ -1,7 +1,8 @@
 """Vectorised projection of points onto lane centre lines: (x, y) ⇄ (s, d).
 
 Lane shapes are stored padded in one array (lanes × points), so that any number of points, each with its own
-lane, is projected in one call (the nearest segment found by :mod:`.frenet_kernel`, compiled). The first and last segment of every lane extend beyond its ends, so a
+lane, is projected in one call (the nearest segment found by :mod:`.frenet_kernel`, compiled, as are the look-ups
+of a segment, a point and a lane position along a lane). The first and last segment of every lane extend beyond its ends, so a
 point before the start of a lane gets s < 0 and one after its end s > length (the frame of a lane continues
 straight ahead and behind it).
 
@@ -73,8 +74,7 @@ class LaneShapes:
         """
         from .frenet_kernel import nearest_segments  # numba: compiled at the first projection
 
-        lane = np.asarray(lane, dtype=int)
-        x, y = (np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), lane.shape)) for v in (x, y))
+        lane, x, y = _flat(lane, x, y)
         if s_hint is not None:
             first = self._segment_at(lane, s_hint) - window
             width = np.full(lane.shape, 2 * window + 1)
@@ -86,16 +86,10 @@ class LaneShapes:
     def point_at(self, lane: np.ndarray, s: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(x, y) [m] of the points ``s`` along lanes ``lane`` and ``d`` left of them [m] (the inverse of
         :meth:`project`; beyond a lane's ends along its first or last segment's extension)."""
-        lane = np.asarray(lane, dtype=int)
-        s = np.asarray(s, dtype=float)
-        k = self._segment_at(lane, s)
-        start = self.points[lane, k]
-        seg = self.points[lane, k + 1] - start
-        unit = seg / np.linalg.norm(seg, axis=1)[:, None]
-        along = (s - self.cumulative[lane, k])[:, None] * unit
-        left = np.asarray(d, dtype=float)[:, None] * np.column_stack([-unit[:, 1], unit[:, 0]])
-        point = start + along + left
-        return point[:, 0], point[:, 1]
+        from .frenet_kernel import points_at
+
+        lane, s, d = _flat(lane, s, d)
+        return points_at(self.points, self.cumulative, self.count, lane, s, d)
 
     def heading_at(self, lane: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Heading [rad] of lanes ``lane`` at distances ``s`` [m] along them."""
@@ -107,9 +101,17 @@ class LaneShapes:
     def _segment_at(self, lane: np.ndarray, s: Any) -> np.ndarray:
         """Index of the segment of lanes ``lane`` (indices) that holds the distances ``s`` [m] along them (the first
         or last one beyond a lane's ends)."""
-        widest = int(self.count[lane].max(initial=2))  # the padding beyond changes no index
-        k = (self.cumulative[lane, :widest] <= np.asarray(s, dtype=float)[:, None]).sum(axis=1) - 1
-        return np.clip(k, 0, self.count[lane] - 2)
+        from .frenet_kernel import segments_at
+
+        lane, s = _flat(lane, s)
+        return segments_at(self.cumulative, self.count, lane, s)
+
+
+def _flat(lane: Any, *values: Any) -> tuple[np.ndarray, ...]:
+    """``lane`` as a 1-D array of lane indices, and ``values`` as floats of its shape (contiguous, as the compiled
+    loops of :mod:`.frenet_kernel` take them)."""
+    lane = np.asarray(lane, dtype=np.int64).reshape(-1)
+    return (lane, *(np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), lane.shape)) for v in values))
 
 
 def _cumulative(points: np.ndarray) -> np.ndarray:
@@ -122,14 +124,7 @@ def _along(source: np.ndarray, target: np.ndarray, count: np.ndarray, lane: np.n
     """Map ``value`` from one measure along lanes (``source`` [lanes, points], non-decreasing per lane) to another
     (``target``): piecewise linear between the lanes' points; beyond a lane's ends at the rate of its first or
     last segment (of the whole lane where that segment has no length in ``source``)."""
-    value = np.asarray(value, dtype=float)
-    widest = int(count[lane].max(initial=2))  # the padding beyond changes no index
-    src, dst = source[lane, :widest], target[lane, :widest]
-    last = count[lane] - 1
-    k = np.clip((src <= value[:, None]).sum(axis=1) - 1, 0, last - 1)
-    rows = np.arange(len(lane))
-    x0, x1, y0, y1 = src[rows, k], src[rows, k + 1], dst[rows, k], dst[rows, k + 1]
-    total_x, total_y = src[rows, last], dst[rows, last]
-    whole = np.where(total_x > 0.0, total_y / np.where(total_x > 0.0, total_x, 1.0), 1.0)
-    rate = np.where(x1 > x0, (y1 - y0) / np.where(x1 > x0, x1 - x0, 1.0), whole)
-    return y0 + (value - x0) * rate
+    from .frenet_kernel import remap_along
+
+    lane, value = _flat(lane, value)
+    return remap_along(source, target, count, lane, value)

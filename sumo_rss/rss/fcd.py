@@ -216,7 +216,7 @@ class FcdReader:
         self.network = network
         self.vehicles = vehicles or VehicleInfo()
         self.ego_ids = set(ego_ids)
-        self._prev = _PreviousStep(np.zeros(0, dtype=str), np.zeros((0, len(_UNSEEN))))
+        self._prev = _PreviousStep(np.zeros(0, dtype=np.int64), np.zeros((0, len(_UNSEEN))))
         self._resolution: float | None = None  # [m] of a lateral position difference written with few decimals
         self._speed_decimals: int | None = None  # of the speeds as written (for accelerations worked out from them)
         self._prev_time: float | None = None
@@ -229,6 +229,9 @@ class FcdReader:
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
         self._lane_index = dict(zip(network.lane_ids.tolist(), range(len(network.lane_ids))))
         self._route_of: dict[str, tuple[str, ...]] = {}  # of each vehicle seen (VehicleInfo.route_of, () for none)
+        self._number: dict[str, int] = {}  # of each vehicle seen, in order of appearance (the step before's look-up)
+        self._type_row: dict[str, int] = {}  # of each vType seen: its row of _type_table
+        self._type_table = np.zeros((0, 3))  # per vType seen: length, width [m], whether of vClass bicycle
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
@@ -323,6 +326,27 @@ class FcdReader:
                           "--lateral-resolution); at such steps the lateral speed is taken as 0, as SUMO reports it",
                           stacklevel=3)
 
+    def _type_rows(self, types: Sequence[str]) -> np.ndarray:
+        """Each vehicle's row of ``_type_table`` (by its vType; rows added for vTypes not seen before: their sizes,
+        or SUMO's passenger size for a vType not defined)."""
+        rows = list(map(self._type_row.get, types))
+        if None in rows:
+            new = sorted(set(types) - self._type_row.keys())
+            self._type_row.update(zip(new, range(len(self._type_row), len(self._type_row) + len(new))))
+            self._type_table = np.vstack([self._type_table, [(*self.vehicles.sizes.get(t, SUMO_DEFAULT_SIZE),
+                                                              float(t in self.vehicles.bicycles)) for t in new]])
+            rows = list(map(self._type_row.__getitem__, types))
+        return np.array(rows, dtype=np.intp)
+
+    def _numbers_of(self, ids: Sequence[str]) -> np.ndarray:
+        """Each vehicle's number (in order of first appearance in the file)."""
+        numbers = list(map(self._number.get, ids))
+        if None in numbers:
+            for v in ids:
+                self._number.setdefault(v, len(self._number))
+            numbers = list(map(self._number.__getitem__, ids))
+        return np.array(numbers, dtype=np.int64)
+
     def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
         value = step.time
@@ -376,9 +400,8 @@ class FcdReader:
             warnings.warn(f"{self.path}: vType {listed(sorted(unknown))} is not defined (give its route or vType "
                           f"file); audited at SUMO's passenger size {SUMO_DEFAULT_SIZE[0]:g} m x "
                           f"{SUMO_DEFAULT_SIZE[1]:g} m", stacklevel=2)
-        sizes = np.array(list(map(self.vehicles.sizes.get, types, itertools.repeat(SUMO_DEFAULT_SIZE))),
-                         dtype=float).reshape(len(types), 2)
-        length, width = sizes[:, 0].copy(), sizes[:, 1].copy()
+        kind = self._type_rows(types)
+        length, width, bicycle = (self._type_table[kind, c] for c in range(3))
         heading = compass_deg_to_heading(angle)
 
         def optional(name: str) -> np.ndarray | None:
@@ -409,7 +432,8 @@ class FcdReader:
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
-        seen, prev = self._prev.of(ids)
+        number = self._numbers_of(id_column)
+        seen, prev = self._prev.of(number)
         prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)
         lat_moved = np.where(same_edge, edge_lat - prev_edge_lat, 0.0)  # [m]
@@ -438,9 +462,9 @@ class FcdReader:
             lat_speed = np.where(self._against_lane(lane, heading, length, centres), -across, across)
         else:
             across = np.zeros(len(ids))  # not needed: SUMO wrote the lateral speeds
-        self._prev = _PreviousStep(ids, np.column_stack([speed, edge, lane, lat_pos, edge_lat, across]))
+        self._prev = _PreviousStep(number, np.column_stack([speed, edge, lane, lat_pos, edge_lat, across]))
         self._prev_time = time
-        is_ego = np.isin(ids, sorted(self.ego_ids)) | (vtype == EGO_TYPE)
+        is_ego = (np.isin(ids, sorted(self.ego_ids)) if self.ego_ids else False) | (vtype == EGO_TYPE)
         routes = tuple(map(self._route_of.get, id_column))
         if None in routes:
             self._route_of.update((v, self.vehicles.route_of(v) or ()) for v in id_column if v not in self._route_of)
@@ -449,8 +473,7 @@ class FcdReader:
             time=time, ids=ids, x=x, y=y, heading=heading, speed=speed, accel=accel, lat_speed=lat_speed,
             length=length, width=width, lane_id=lane_id, edge_id=self.network.edge_ids[edge],
             lane_index=self.network.lane_index[lane], lane_pos=lane_pos, lat_pos=lat_pos,
-            vclass=np.where(is_ego, EGO_CLASS, np.where(np.isin(vtype, list(self.vehicles.bicycles)), BICYCLE_CLASS,
-                                                        BACKGROUND_CLASS)), vtype=vtype,
+            vclass=np.where(is_ego, EGO_CLASS, np.where(bicycle > 0.0, BICYCLE_CLASS, BACKGROUND_CLASS)), vtype=vtype,
             signals=signals,
             route_index=np.full(len(ids), -1, dtype=int), route_edges=routes if any(routes) else None,
             accel_resolution=accel_resolution, persons=persons)
@@ -566,7 +589,12 @@ def _numbers(step: FcdStep, name: str, where: str, *, integer: str = "", default
     of its integers, as integers), ``default`` where a vehicle lacks it (None: required); FcdError naming the
     vehicle and the value."""
     kind = int if integer else float
+    exact = None if integer else step.numbers(name)
+    if exact is not None:  # plain decimals: finite
+        return exact
     column = step.column(name)
+    if default is not None and column.count(None) == len(column):  # no vehicle has it (SUMO's signals by default)
+        return np.full(len(column), kind(default))
     try:
         if default is not None and not step.has(name):
             column = tuple(default if v is None else v for v in column)
@@ -585,7 +613,8 @@ def _numbers(step: FcdStep, name: str, where: str, *, integer: str = "", default
 
 
 class _PreviousStep:
-    """What the reader remembers of the cars of the step before, as ``_UNSEEN`` lists it (rows sorted by id)."""
+    """What the reader remembers of the cars of the step before, as ``_UNSEEN`` lists it (rows sorted by the cars'
+    numbers, :meth:`FcdReader._numbers_of`)."""
 
     def __init__(self, ids: np.ndarray, values: np.ndarray):
         order = np.argsort(ids)

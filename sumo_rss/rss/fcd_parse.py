@@ -1,7 +1,8 @@
 """Streaming parse of SUMO FCD files: each ``<timestep>``'s vehicles as columns of attribute strings.
 
 The file is read block by block. A time step in SUMO's own layout (every vehicle on its line, its attributes in the
-order of the step before) is read by :mod:`.fcd_scan`'s regular expressions straight into columns; everything else
+order of the step before) is read by :mod:`.fcd_scan`'s compiled pass, which finds where its values are (columns of
+strings made when asked for, plain decimals read as floats without strings); everything else
 goes to expat, which keeps, per vehicle, only its attribute list, and a finished step turns the lists into columns in
 one transposition (steps whose vehicles' attributes differ are read vehicle by vehicle). expat sees every byte of the
 file but the steps taken by the fast path, whose line breaks it is given instead: it checks the document as a
@@ -16,8 +17,10 @@ from dataclasses import dataclass, field
 from typing import IO
 from xml.parsers import expat
 
+import numpy as np
+
 from ..sumo_xml import MALFORMED
-from .fcd_scan import STEP_END, StepLayout
+from .fcd_scan import STEP_END, ScannedStep, StepLayout
 
 BLOCK_BYTES = 1 << 16  # read and parsed at once (progress moves in these steps)
 MAX_PENDING = 1 << 26  # [bytes] held back for the fast path at most, waiting for a step's end
@@ -34,45 +37,61 @@ class FcdStep:
     vehicles: list[list[str]] = field(default_factory=list)  # per vehicle: name, value, name, value, ...
     unaudited: list[str] = field(default_factory=list)  # the ids of the containers listed in it
     persons: list[list[str]] = field(default_factory=list)  # per person: name, value, name, value, ...
+    _scanned: ScannedStep | None = field(default=None, repr=False)  # a step read by the fast path
     _columns: dict[str, tuple[str, ...]] | None = field(default=None, repr=False)
     _rows: list[dict[str, str]] | None = field(default=None, repr=False)
-    _count: int | None = field(default=None, repr=False)  # of the vehicles of a step read as columns
 
     @classmethod
-    def of_columns(cls, time: str, columns: dict[str, tuple[str, ...]], count: int) -> FcdStep:
-        """A step of ``count`` vehicles, every one with the attributes ``columns`` has (by name)."""
-        return cls(time, _columns=columns, _count=count)
+    def of_scan(cls, scanned: ScannedStep) -> FcdStep:
+        """A step read by the fast path (every vehicle with the attributes ``scanned.names``)."""
+        return cls(scanned.time, _scanned=scanned, _columns={})
 
     def __len__(self) -> int:
-        return len(self.vehicles) if self._count is None else self._count
+        return len(self.vehicles) if self._scanned is None else self._scanned.count
 
     def rows(self) -> list[dict[str, str]]:
         """Every vehicle's attributes by name (for checks and messages that go vehicle by vehicle)."""
         if self._rows is None:
-            if self._count is not None:
-                names = tuple(self._by_name() or ())
-                self._rows = [dict(zip(names, values)) for values in zip(*self._columns.values())] if names else \
-                    [{} for _ in range(self._count)]
+            if self._scanned is not None:
+                names = self._scanned.names if len(self) else ()
+                columns = [self.column(name) for name in names]
+                self._rows = [dict(zip(names, values)) for values in zip(*columns)] if names else \
+                    [{} for _ in range(len(self))]
             else:
                 self._rows = [dict(zip(v[0::2], v[1::2])) for v in self.vehicles]
         return self._rows
 
     def column(self, name: str) -> tuple[str | None, ...]:
         """Attribute ``name`` of every vehicle (None where a vehicle lacks it)."""
+        scanned = self._scanned
+        if scanned is not None:
+            if not self.has(name):
+                return (None,) * len(self)
+            if name not in self._columns:
+                self._columns[name] = scanned.column(name)
+            return self._columns[name]
         columns = self._by_name()
         if columns is not None:
             return columns.get(name, (None,) * len(self))
         return tuple(r.get(name) for r in self.rows())
 
+    def numbers(self, name: str) -> np.ndarray | None:
+        """Attribute ``name`` of every vehicle as floats, to the bit what ``float`` gives for each, where the fast
+        path read the step and every value is a plain decimal (:meth:`ScannedStep.numbers`); else None."""
+        return self._scanned.numbers(name) if self._scanned is not None and self.has(name) else None
+
     def has(self, name: str) -> bool:
         """Whether every vehicle has attribute ``name`` (False for a step without vehicles)."""
+        if self._scanned is not None:
+            return len(self) > 0 and name in self._scanned.names
         columns = self._by_name()
         if columns is not None:
             return name in columns and len(self) > 0
         return len(self) > 0 and all(name in r for r in self.rows())
 
     def _by_name(self) -> dict[str, tuple[str, ...]] | None:
-        """The columns by attribute name where every vehicle has the same attributes in the same order, else None."""
+        """The columns by attribute name where every vehicle has the same attributes in the same order, else None
+        (a step expat read)."""
         if self._columns is None:
             vehicles = self.vehicles
             if len(set(map(len, vehicles))) > 1:
@@ -242,10 +261,10 @@ class FcdParser:
     def _read_fast(self, text: bytes) -> FcdStep | None:
         """The step ``text`` (white space, then one ``<timestep>`` element) by the fast path; None where it is not
         in the layout of the step before."""
-        if self._layout is None or not text.isascii():
+        if self._layout is None:
             return None
-        read = self._layout.columns(text.decode("ascii"))
-        return None if read is None else FcdStep.of_columns(*read)
+        scanned = self._layout.scan(text)
+        return None if scanned is None else FcdStep.of_scan(scanned)
 
     def _expat(self, data: bytes, final: bool = False) -> None:
         self._given += len(data)
