@@ -8,6 +8,7 @@ yields to link j when bit j of its response is set); at signals the current link
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -180,12 +181,28 @@ class JunctionModel:
         return names.tolist(), np.where(tls != "", np.searchsorted(names, tls), -1)
 
     def signal_ranks(self, tls_states: dict[str, str] | None) -> np.ndarray:
-        """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown."""
-        chars = self.signal_chars(tls_states)
-        return np.where(chars > 0, RANK_OF_BYTE[chars], -1)
+        """[L] rank of every link's current signal (G 2, g 1, anything else 0); -1 if unsignalised or unknown. Read
+        it, never write it: it is the same array while the states stay the same (:meth:`signal_chars`)."""
+        return self._last_signals(tls_states)[2]
 
     def signal_chars(self, tls_states: dict[str, str] | None) -> np.ndarray:
-        """[L] uint8: every link's current signal state character (its ASCII byte); 0 if unsignalised or unknown."""
+        """[L] uint8: every link's current signal state character (its ASCII byte); 0 if unsignalised or unknown.
+        Worked out again only when the states differ from those of the last call (they change at a phase switch,
+        every few seconds, not every step); read it, never write it."""
+        return self._last_signals(tls_states)[1]
+
+    def _last_signals(self, tls_states: dict[str, str] | None) -> tuple[tuple, np.ndarray, np.ndarray]:
+        """(the states as a key, :meth:`signal_chars`, :meth:`signal_ranks`) of ``tls_states``, kept per model for
+        the last states asked about."""
+        key = tuple(tls_states.items()) if tls_states else ()
+        last = _LAST_SIGNALS.get(self)
+        if last is None or last[0] != key:
+            chars = self._signal_chars(tls_states)
+            last = _LAST_SIGNALS[self] = (key, chars, np.where(chars > 0, RANK_OF_BYTE[chars], -1))
+        return last
+
+    def _signal_chars(self, tls_states: dict[str, str] | None) -> np.ndarray:
+        """:meth:`signal_chars`, worked out."""
         out = np.zeros(len(self.links), dtype=np.uint8)
         if tls_states:
             names, number = self._signals
@@ -196,6 +213,12 @@ class JunctionModel:
             k = k[(self.link_tls_index[k] >= 0) & (self.link_tls_index[k] < length[number[k]])]
             out[k] = chars[(np.cumsum(length) - length)[number[k]] + self.link_tls_index[k]]
         return out
+
+
+# Per junction model, the last signal states asked about and their links' characters and ranks
+# (:meth:`JunctionModel._last_signals`; the model is frozen).
+_LAST_SIGNALS: weakref.WeakKeyDictionary[JunctionModel, tuple[tuple, np.ndarray, np.ndarray]] = \
+    weakref.WeakKeyDictionary()
 
 
 def _internal_path(via: int, network: RoadNetwork) -> tuple[int, ...]:

@@ -19,7 +19,6 @@ asks the car behind to be able to stop before the area. All functions broadcast 
 """
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,8 +40,6 @@ KIND_YIELD = SITUATION_CODES.index(SituationType.INTERSECTION_YIELD)
 KIND_SAME = SITUATION_CODES.index(SituationType.INTERSECTION_SAME_PRIORITY)
 PRIORITY_SAME, PRIORITY_A, PRIORITY_B = 0, 1, 2
 _NO_EDGES, _NO_ROUTES = np.zeros(0, dtype=np.int64), np.zeros((0, 0), dtype=np.int64)  # the kernel's "none given"
-# Per junction model, the last signal states seen and their links' ranks (:func:`_signal_ranks`).
-_LAST_RANKS: weakref.WeakKeyDictionary[JunctionModel, tuple[tuple, np.ndarray]] = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,7 +200,7 @@ def intersection_situations(snapshot: WorldSnapshot, frame: VehicleFrame, networ
     floats, ints, flags, codes = junction_pairs(
         rows, links, pos, id_rank, pairs.indptr, pairs.other, pairs.reverse, table.start, table.end,
         table.static_priority, table.area, junctions.area_crossing, junctions.link_tls_index,
-        _signal_ranks(junctions, snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
+        junctions.signal_ranks(snapshot.tls_states), snapshot.length, np.maximum(frame.v_lon, 0.0),
         param_table(frame.params))
     n = ints.shape[1]
     if not n:  # most steps of a city: nothing to evaluate
@@ -222,15 +219,6 @@ def param_table(params: RssParamArrays) -> np.ndarray:
     of the fields laid row by row; the transposed view, not a contiguous copy)."""
     return np.array([getattr(params, name) for name in PARAM_NAMES], dtype=float).T
 
-
-def _signal_ranks(junctions: JunctionModel, tls_states: dict[str, str] | None) -> np.ndarray:
-    """:meth:`JunctionModel.signal_ranks`, computed again only when the signal states differ from the last step's
-    (they change at a phase switch, every few seconds, not every step). The array is read, never written."""
-    key = tuple(tls_states.items()) if tls_states else ()
-    last = _LAST_RANKS.get(junctions)
-    if last is None or last[0] != key:
-        last = _LAST_RANKS[junctions] = (key, junctions.signal_ranks(tls_states))
-    return last[1]
 
 
 def _no_situations() -> PairSituations:

@@ -53,7 +53,6 @@ class SignalRule:
         self.records: list[dict] = []
         self._approach = _Approach.empty(junctions.lane_links.shape[1])  # the cars approaching at the step before
         self._time: float | None = None  # [s] of the step before
-        self._chars: tuple[tuple, np.ndarray] = ((), np.zeros(0, dtype=np.uint8))  # the last states, their chars
 
     def step(self, snapshot: WorldSnapshot, frame: VehicleFrame) -> None:
         """SUMO's signal states at a step are those its cars moved under to get there: a car that crossed a stop
@@ -62,7 +61,7 @@ class SignalRule:
         j = self.junctions
         if not snapshot.tls_states:
             return
-        chars = self._signal_chars(snapshot.tls_states)
+        chars = j.signal_chars(snapshot.tls_states)
         lane = frame.lane
         links = self._approach_links(frame)
         # Whether each car could stop at its stop line from here at b_min.
@@ -105,14 +104,6 @@ class SignalRule:
                                       np.repeat(can_stop[a][:, None], mine.shape[1], axis=1),
                                       np.column_stack([snapshot.x[a], snapshot.y[a], snapshot.speed[a]]))
         self._time = snapshot.time
-
-    def _signal_chars(self, tls_states: dict[str, str]) -> np.ndarray:
-        """:meth:`JunctionModel.signal_chars`, worked out again only when the states differ from the last step's
-        (they change at a phase switch, every few seconds). The array is read, never written."""
-        key = tuple(tls_states.items())
-        if self._chars[0] != key:
-            self._chars = (key, self.junctions.signal_chars(tls_states))
-        return self._chars[1]
 
     def _teleported(self, before: _Approach, row: int, snapshot: WorldSnapshot, k: int) -> bool:
         """Whether car ``k`` moved farther since the step before than its speeds then and now allow."""
