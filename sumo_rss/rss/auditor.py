@@ -25,6 +25,7 @@ from .params import BICYCLE, PERSON, EvasiveParams, RssParamArrays, RssParams, r
 from .records import VIOLATION_COLUMNS
 from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
 from .intersection import KIND_SIGNAL, intersection_situations
+from .numbering import Numbering
 from .person_situations import PersonAudit
 from .signals import SignalRule
 from .situations import PairSituations, evaluate, vehicle_frame
@@ -197,7 +198,7 @@ class Auditor:
         self._occlusion = OcclusionTracker(network, occlusion, heights, occluders)
         self._tracker = ResponsibilityTracker(run_id, join=not raw_episodes, stay_out_complies=not junction_brake_min,
                                               on_close=self._close_episode)
-        self._uid: dict[str, int] = {}
+        self._uids = Numbering()  # every road user seen: its number in the pair keys
         self._routes = RouteTable(network)
         self._prev_ids: set[str] = set()
         self._collisions: list[dict] = []
@@ -216,12 +217,7 @@ class Auditor:
             np.full(len(persons), PERSON), persons.vtype), persons.speed) if persons is not None else
             RssParamArrays.stack([]))
         ids = users.ids.tolist()  # Python strings: faster to hash than numpy's, one by one
-        known = list(map(self._uid.get, ids))
-        if None in known:  # numbered in order of appearance
-            for v in ids:
-                self._uid.setdefault(v, len(self._uid))
-            known = list(map(self._uid.__getitem__, ids))
-        uid = np.array(known, dtype=np.int64)
+        uid = self._uids.of(ids)
         road_keys = (uid[road.a] << 32) | uid[road.b]
         horizon = 2.0 * float(frame.reach.max(initial=0.0)) + 20.0
         # At junctions a standing car is held (a_acc = 0) whatever hold_standing says (docs/rss.md, moving_off.py).
@@ -293,8 +289,8 @@ class Auditor:
     def _record_collision(self, c: CollisionInput) -> None:
         a, b = sorted((c.collider, c.victim))
         records = []
-        if a in self._uid and b in self._uid:
-            key = (np.int64(self._uid[a]) << 32) | np.int64(self._uid[b])
+        if a in self._uids.number and b in self._uids.number:
+            key = (np.int64(self._uids.number[a]) << 32) | np.int64(self._uids.number[b])
             # The collision ends every open episode of the pair (on the road and at a junction).
             records = self._tracker.collide([int(key), int(key | INTERSECTION_KEY)], c.time, c.collider, c.victim)
         blamed, episode_key = collision_blame(records)

@@ -33,6 +33,7 @@ from .occlusion import OccluderEdges, OcclusionParams
 from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
 from .fcd_persons import person_snapshot
+from .numbering import Numbering
 from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
@@ -229,8 +230,8 @@ class FcdReader:
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
         self._lane_index = dict(zip(network.lane_ids.tolist(), range(len(network.lane_ids))))
         self._route_of: dict[str, tuple[str, ...]] = {}  # of each vehicle seen (VehicleInfo.route_of, () for none)
-        self._number: dict[str, int] = {}  # of each vehicle seen, in order of appearance (the step before's look-up)
-        self._type_row: dict[str, int] = {}  # of each vType seen: its row of _type_table
+        self._numbers = Numbering()  # of each vehicle seen (the step before's look-up)
+        self._types = Numbering()  # of each vType seen: its row of _type_table
         self._type_table = np.zeros((0, 3))  # per vType seen: length, width [m], whether of vClass bicycle
 
     def __iter__(self) -> Iterator[WorldSnapshot]:
@@ -329,23 +330,12 @@ class FcdReader:
     def _type_rows(self, types: Sequence[str]) -> np.ndarray:
         """Each vehicle's row of ``_type_table`` (by its vType; rows added for vTypes not seen before: their sizes,
         or SUMO's passenger size for a vType not defined)."""
-        rows = list(map(self._type_row.get, types))
-        if None in rows:
-            new = sorted(set(types) - self._type_row.keys())
-            self._type_row.update(zip(new, range(len(self._type_row), len(self._type_row) + len(new))))
+        rows = self._types.of(types)
+        if len(self._types) > len(self._type_table):
+            new = list(self._types.number)[len(self._type_table):]
             self._type_table = np.vstack([self._type_table, [(*self.vehicles.sizes.get(t, SUMO_DEFAULT_SIZE),
                                                               float(t in self.vehicles.bicycles)) for t in new]])
-            rows = list(map(self._type_row.__getitem__, types))
-        return np.array(rows, dtype=np.intp)
-
-    def _numbers_of(self, ids: Sequence[str]) -> np.ndarray:
-        """Each vehicle's number (in order of first appearance in the file)."""
-        numbers = list(map(self._number.get, ids))
-        if None in numbers:
-            for v in ids:
-                self._number.setdefault(v, len(self._number))
-            numbers = list(map(self._number.__getitem__, ids))
-        return np.array(numbers, dtype=np.int64)
+        return rows
 
     def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
@@ -432,7 +422,7 @@ class FcdReader:
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
-        number = self._numbers_of(id_column)
+        number = self._numbers.of(id_column)
         seen, prev = self._prev.of(number)
         prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)
@@ -614,7 +604,7 @@ def _numbers(step: FcdStep, name: str, where: str, *, integer: str = "", default
 
 class _PreviousStep:
     """What the reader remembers of the cars of the step before, as ``_UNSEEN`` lists it (rows sorted by the cars'
-    numbers, :meth:`FcdReader._numbers_of`)."""
+    numbers in the file, :class:`.numbering.Numbering`)."""
 
     def __init__(self, ids: np.ndarray, values: np.ndarray):
         order = np.argsort(ids)
