@@ -206,6 +206,13 @@ def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path
                    str(run / "routes.rou.xml"), "--occluders", str(POLY), "--out", str(tmp_path / "plain"))
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "plain" / "occlusion.csv").read_bytes().count(b"\n") > 3
+    # --occlusion alone: rule 4 with tall road users as the only occluders (no buildings: fewer hidden episodes).
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"), "--vtypes",
+                   str(run / "routes.rou.xml"), "--occlusion", "--out", str(tmp_path / "tall"))
+    assert proc.returncode == 0, proc.stderr
+    assert "episodes hidden at some step" in proc.stdout
+    assert (tmp_path / "tall" / "occlusion.csv").read_bytes().count(b"\n") < \
+        (tmp_path / "plain" / "occlusion.csv").read_bytes().count(b"\n")
     proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"),
                    "--scenario", str(run / "scenario.toml"), "--occluders", str(POLY), "--out", str(tmp_path / "x"))
     assert proc.returncode != 0 and "leave out" in proc.stderr and "--occluders" in proc.stderr
