@@ -440,7 +440,7 @@ def _cmd_audit(args: argparse.Namespace) -> int:
         rules = dict(signal_rule=not args.no_signal_rule, raw_episodes=args.raw_episodes,
                      junction_brake_min=args.junction_brake_min,
                      evasive=EvasiveParams(enabled=True) if args.evasive_effort else None,
-                     occlusion=OcclusionParams(enabled=True, occluders=tuple(args.occluders))
+                     occlusion=OcclusionParams(enabled=True, occluders=tuple(args.occluders or ()))
                      if args.occluders or args.occlusion else None)
     occluders = rules["occlusion"].occluders if rules["occlusion"] is not None else ()
     rules["occluders"] = read_occluders(occluders) if occluders else None
