@@ -16,8 +16,10 @@ import numpy as np
 
 from ..jit import kernel
 from .formulas import combine_lateral, combine_same_dir, is_safe_distance
+from .situations import SITUATION_CODES, SituationType
 
-OPPOSITE_CODE, MERGE_CODE = 1, 2  # SITUATION_CODES indices of opposite-direction and merge pairs
+OPPOSITE_CODE = SITUATION_CODES.index(SituationType.OPPOSITE_DIRECTION)
+MERGE_CODE = SITUATION_CODES.index(SituationType.MERGE)
 # Rows of road_pairs' outputs, in the order it returns them.
 FLOAT_COLUMNS = ("lon_gap", "lat_gap", "lat_offset", "v_lon_a", "v_lon_b", "v_lat_a", "v_lat_b", "lon_d_min",
                  "lat_d_min")  # float64

@@ -430,7 +430,8 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
 
 
 def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork) -> PairSituations:
-    """All relevant pairs of ``snapshot`` with gaps, safe distances and verdicts (rss.md §2-§3)."""
+    """All relevant pairs of ``snapshot`` with gaps, safe distances and verdicts (rss.md §2-§3); the per-pair
+    arithmetic once the other car is in the reference lane's frame is :func:`.road_kernel.road_pairs` (compiled)."""
     i, j = candidate_pairs(snapshot, frame)
     if i.size:  # a pair farther apart along the lanes than any candidate is apart is safe: no need to look beyond
         network.require_reach(candidate_radius(snapshot, frame))
