@@ -186,7 +186,8 @@ def test_a_car_hidden_at_the_speed_limit_leaves_the_other_to_respond_from_exposu
 
 def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path):
     """30 s of intersection_occluded (its [rss] occluders: the corner buildings), audited online and again offline
-    from its FCD with its scenario.toml: the same bytes in every CSV, occlusion.csv included."""
+    from its FCD with its scenario.toml: the same bytes in every CSV, occlusion.csv included; then without the
+    scenario, with --occluders and with --occlusion alone."""
     proc = run_cli("run", str(SCENARIOS / "intersection_occluded.toml"), "--duration", "30", "--out",
                    str(tmp_path / "runs"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr
@@ -206,6 +207,12 @@ def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path
                    str(run / "routes.rou.xml"), "--occluders", str(POLY), "--out", str(tmp_path / "plain"))
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "plain" / "occlusion.csv").read_bytes().count(b"\n") > 3
+    # --occlusion alone: the tall road users are the only occluders (the absent file list raised TypeError).
+    proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"), "--vtypes",
+                   str(run / "routes.rou.xml"), "--occlusion", "--out", str(tmp_path / "tall"))
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "plain" / "occlusion.csv").read_bytes().split(b"\n")[0]
+    assert (tmp_path / "tall" / "occlusion.csv").read_bytes().split(b"\n")[0] == header
     proc = run_cli("audit", str(run / "fcd.xml"), "--net", str(NET / "intersection_occluded.net.xml"),
                    "--scenario", str(run / "scenario.toml"), "--occluders", str(POLY), "--out", str(tmp_path / "x"))
     assert proc.returncode != 0 and "leave out" in proc.stderr and "--occluders" in proc.stderr
