@@ -67,19 +67,36 @@ def test_rule5_settings_are_checked():
         evasive_params("ad_rss", lookback_s=0.0)
 
 
-def test_a_leader_hit_from_behind_could_not_have_evaded(net):
+def _empty(t: float) -> WorldSnapshot:
+    """A step without any vehicle (SUMO writes them before the first vehicle departs)."""
+    none = np.zeros(0)
+    return WorldSnapshot(
+        time=t, ids=np.zeros(0, dtype=str), x=none, y=none, heading=none, speed=none, accel=none, lat_speed=none,
+        length=none, width=none, lane_id=np.zeros(0, dtype=str), edge_id=np.zeros(0, dtype=str),
+        lane_index=np.zeros(0, int), lane_pos=none, lat_pos=none, vclass=np.zeros(0, dtype=str),
+        vtype=np.zeros(0, dtype=str), signals=np.zeros(0, int), route_index=np.zeros(0, int), route_edges=())
+
+
+@pytest.mark.parametrize("empty_steps", [0, 1, 2])
+def test_a_leader_hit_from_behind_could_not_have_evaded(net, empty_steps):
     """The leader stands in lane 1 (front bumper at 500 m); the follower comes at 20 m/s 30 m behind its back
     (d_min 20 + 1.75 + 23.5²/8 = 90.8 m: dangerous from the first step, the follower owes braking after ρ), keeps its
     speed to 1.2 s and brakes at 8 m/s² only from then on: it breaks its response from 1.1 s (a = 0 > −4) and runs
     into the leader at 1.6 s. At 1.1 s the gap is 8 m: in 3 s the follower on its naive prediction (20 m/s) covers
     60 m, the leader at most 1.75·3² = 15.75 m, and 0.2 m/s² moves it 0.9 m sideways, short of the 1.9 m it would
-    need: no candidate avoids the contact, at 1.1 s nor later (rules 1-3: the follower; rule 5: none)."""
+    need: no candidate avoids the contact, at 1.1 s nor later (rules 1-3: the follower; rule 5: none).
+    ``empty_steps``: the data begins with that many steps of 0.1 s without any vehicle (a merge_onramp FCD's do:
+    rule 5's lateral accelerations looked the cars up among those of the step before, an empty array: IndexError),
+    and every time is that much later."""
     auditor = Auditor(net, ParamResolver("ad_rss"), signal_rule=False, evasive=RULE5)
+    for k in range(empty_steps):
+        auditor.observe(_empty(round(0.1 * k, 6)))
     x, v, t = 465.5, 20.0, 0.0
     while True:
+        step_t = t + 0.1 * empty_steps
         a = -8.0 if t > 1.25 else 0.0
-        step = _snapshot(t, [("follower", 1, x, v, a, 0.0, 0.0, "car"),
-                             ("leader", 1, 500.0, 0.0, 0.0, 0.0, 0.0, "car")])
+        step = _snapshot(step_t, [("follower", 1, x, v, a, 0.0, 0.0, "car"),
+                                  ("leader", 1, 500.0, 0.0, 0.0, 0.0, 0.0, "car")])
         contact = x > 500.0 - LENGTH
         auditor.observe(step, [CollisionInput(step.time, "follower", "leader", "collision")] if contact else [])
         if contact:
@@ -88,7 +105,8 @@ def test_a_leader_hit_from_behind_could_not_have_evaded(net):
         x, v, t = x + 0.05 * (v + v_next), v_next, t + 0.1
     result = auditor.finish()
     (episode,) = result.episodes.itertuples()
-    assert (episode.responsible, episode.collision, episode.t_end_s) == ("a", True, pytest.approx(1.6))
+    assert (episode.responsible, episode.collision, episode.t_end_s) == ("a", True,
+                                                                         pytest.approx(1.6 + 0.1 * empty_steps))
     assert episode.evasive_checked and np.isnan(episode.evasive_last_s) and episode.rule5_responsible == ""
     assert "evasive-effort" not in set(result.violations.constraint)
     assert result.collisions.could_have_avoided.tolist() == [""]

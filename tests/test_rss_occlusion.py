@@ -186,7 +186,8 @@ def test_a_car_hidden_at_the_speed_limit_leaves_the_other_to_respond_from_exposu
 
 def test_online_and_offline_rule4_audits_of_the_occluded_crossing_agree(tmp_path):
     """30 s of intersection_occluded (its [rss] occluders: the corner buildings), audited online and again offline
-    from its FCD with its scenario.toml: the same bytes in every CSV, occlusion.csv included."""
+    from its FCD with its scenario.toml: the same bytes in every CSV, occlusion.csv included; then without the
+    scenario, with --occluders and with --occlusion alone."""
     proc = run_cli("run", str(SCENARIOS / "intersection_occluded.toml"), "--duration", "30", "--out",
                    str(tmp_path / "runs"), "--fcd", "--quiet")
     assert proc.returncode == 0, proc.stderr

@@ -42,7 +42,8 @@ class AskedStep:
     Asked episodes: serial, c1_side (0: c₁ is car a), c₁'s uid, the pair's key and c₁'s role. Vehicles (snapshot
     rows, copied): uid, speed, lat_speed, accel, lane, d, half_lon, half_lat and the RSS parameters. The step's
     vehicle pair rows (the situations' arrays, which the auditor makes anew every step and never changes): a, b
-    (vehicle rows), key, kind, a_is_rear, lon_gap, a_is_left, lat_gap, wrong_way_a, wrong_way_b (None: none). The
+    (vehicle rows), key, kind, a_is_rear, lon_gap, a_is_left, lat_gap, wrong_way_a, wrong_way_b (None: none); the
+    gaps copied (on roads they are two rows of one block of nine, :mod:`.road_kernel`, kept whole by a view). The
     open episodes (copied): serial, uids [·, 2], a_left, owed_lat; and the responsibility tracker's bounds of the
     step, ``judged`` (:class:`~.responsibility.JudgedStep`, made anew every step; None: none).
     """
@@ -98,8 +99,8 @@ def asked_step(snapshot: WorldSnapshot, uids: np.ndarray, frame: VehicleFrame, s
         pair_key=e.keys[ask], role=e.roles[ask, c1_side], uid=uids.copy(), speed=snapshot.speed.copy(),
         lat_speed=snapshot.lat_speed.copy(), accel=snapshot.accel.copy(), lane=frame.lane.copy(), d=frame.d.copy(),
         half_lon=frame.half_lon.copy(), half_lat=frame.half_lat.copy(), params=params.take(np.arange(len(uids))),
-        a=sit.a, b=sit.b, key=keys, kind=sit.kind, a_is_rear=sit.a_is_rear, lon_gap=sit.lon_gap,
-        a_is_left=sit.a_is_left, lat_gap=sit.lat_gap, wrong_way_a=sit.wrong_way_a, wrong_way_b=sit.wrong_way_b,
+        a=sit.a, b=sit.b, key=keys, kind=sit.kind, a_is_rear=sit.a_is_rear, lon_gap=sit.lon_gap.copy(),
+        a_is_left=sit.a_is_left, lat_gap=sit.lat_gap.copy(), wrong_way_a=sit.wrong_way_a, wrong_way_b=sit.wrong_way_b,
         ep_serial=e.serial.copy(), ep_uids=e.uids.copy(), ep_a_left=e.a_left.copy(), ep_owed_lat=e.owed_lat.copy(),
         judged=tracker.judged)
 

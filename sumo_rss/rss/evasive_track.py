@@ -139,7 +139,7 @@ class Rule5Tracker:
         t = snapshot.time
         order = np.argsort(uids)
         lat_accel = np.zeros(len(snapshot))
-        if self._prev_time is not None:
+        if self._prev_time is not None and len(self._prev_uid):  # (a step before may have had no vehicle)
             seen, pos = find_sorted(self._prev_uid, uids)
             lat_accel = np.where(seen, (snapshot.lat_speed - self._prev_lat[pos]) / (t - self._prev_time), 0.0)
         oldest = t - self.params.lookback_s - TIME_EPS

@@ -65,7 +65,9 @@ class OpenEpisodes:
     v_excess: np.ndarray = field(default_factory=lambda: np.full((0, 2, N_CONSTRAINTS), -np.inf))
 
     def take(self, index: np.ndarray) -> OpenEpisodes:
-        return OpenEpisodes(**{name: value[index] for name, value in vars(self).items()})
+        """The episodes at ``index`` (integer positions). ``ndarray.take`` along the first axis: fancy indexing of
+        the [n, 2] and [n, 2, 4] fields cost ~30 µs each for 2,850 episodes, take 2-6 µs."""
+        return OpenEpisodes(**{name: value.take(index, axis=0) for name, value in vars(self).items()})
 
     @staticmethod
     def concat(parts: list[OpenEpisodes]) -> OpenEpisodes:

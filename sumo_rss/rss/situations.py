@@ -24,8 +24,7 @@ from ..jit import jitable
 from ..road.link_pairs import expand_ranges
 from ..road.network import RoadNetwork
 from ..sim.snapshot import WorldSnapshot
-from .formulas import (combine_lateral, combine_opposite, combine_same_dir, is_safe_distance, lateral_reach, lon_reach,
-                       stopping_distance)
+from .formulas import combine_opposite, lateral_reach, lon_reach, stopping_distance
 from .params import RssParamArrays
 
 
@@ -290,12 +289,11 @@ def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.nd
     pairs = tree.query_pairs(radius, output_type="ndarray")
     if pairs.size == 0:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    i, j = pairs[:, 0], pairs[:, 1]
-    dist = np.hypot(frame.cx[i] - frame.cx[j], frame.cy[i] - frame.cy[j])
-    keep = dist <= frame.reach[i] + frame.reach[j] + np.maximum(gap[i], gap[j]) + size[i] + size[j]
-    i, j = i[keep], j[keep]
-    order = np.argsort(i.astype(np.int64) * n + j)  # by i, then j (one key per pair: the order lexsort gives)
-    return i[order], j[order]
+    from .road_kernel import candidate_keys  # numba: at the first pair
+    key = candidate_keys(pairs, frame.cx, frame.cy, frame.reach, gap, size, n)
+    # By i, then j (the order lexsort gives): one key per pair, sorted (int32 where it fits: twice as fast).
+    key = np.sort(key.astype(np.int32) if n * n < 2 ** 31 else key).astype(pairs.dtype)
+    return key // n, key % n
 
 
 def _on_route(frame: VehicleFrame, vehicle: np.ndarray, edge: np.ndarray, network: RoadNetwork) -> np.ndarray:
@@ -432,7 +430,8 @@ def _upstream_in_reference_frame(frame: VehicleFrame, ref: np.ndarray, other: np
 
 
 def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork) -> PairSituations:
-    """All relevant pairs of ``snapshot`` with gaps, safe distances and verdicts (rss.md §2-§3)."""
+    """All relevant pairs of ``snapshot`` with gaps, safe distances and verdicts (rss.md §2-§3); the per-pair
+    arithmetic once the other car is in the reference lane's frame is :func:`.road_kernel.road_pairs` (compiled)."""
     i, j = candidate_pairs(snapshot, frame)
     if i.size:  # a pair farther apart along the lanes than any candidate is apart is safe: no need to look beyond
         network.require_reach(candidate_radius(snapshot, frame))
@@ -451,7 +450,6 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
     pos_o = frame.pos[other]
     d_o = frame.d[other] + network.lane_offset[lane_o] - network.lane_offset[lane_r]
     v_lon_o, v_lat_o = frame.v_lon[other], frame.v_lat[other]
-    half_lon_o, half_lat_o = frame.half_lon[other], frame.half_lat[other]
     cross = frame.edge[ref] != frame.edge[other]
     chained = np.flatnonzero(cross & (kind == 0))
     if chained.size:
@@ -465,58 +463,32 @@ def evaluate(snapshot: WorldSnapshot, frame: VehicleFrame, network: RoadNetwork)
 
     same = kind == 0
     # Opposite pairs that have passed each other (bodies wholly past) are no situation any more.
-    keep = same | (pos_o + half_lon_o + frame.half_lon[ref] > frame.pos[ref])
-    if not np.all(keep):
-        kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o = (
-            x[keep] for x in (kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o, half_lon_o, half_lat_o))
+    keep = same | (pos_o + frame.half_lon[other] + frame.half_lon[ref] > frame.pos[ref]) if oncoming.size else same
+    if oncoming.size and not np.all(keep):
+        kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o = (
+            x[keep] for x in (kind, ref, other, same, pos_o, d_o, v_lon_o, v_lat_o))
+    # The opposite pairs' per-car terms of the other car, recomputed in the reference frame; a car in its correct
+    # lane brakes at b_corr, one in the oncoming lane at b_min (speeds towards each other).
     opposite = np.flatnonzero(~same)
-    lon_gap = np.abs(pos_o - frame.pos[ref]) - half_lon_o - frame.half_lon[ref]
-    lat_gap = np.abs(d_o - frame.d[ref]) - half_lat_o - frame.half_lat[ref]
-    other_left = d_o > frame.d[ref]
-
-    # Per-car terms, gathered; the other car's recomputed in the reference frame on a two-way road.
-    p = frame.params
-    reach_o, stop_r = frame.reach_min[other], frame.stop_max[ref]
-    lat_left_o, lat_right_o = frame.lat_reach_as_left[other], frame.lat_reach_as_right[other]
+    lat_left_o, lat_right_o, lon_d_min = (np.empty(len(ref) if opposite.size else 0) for _ in range(3))
     if opposite.size:
-        p_x = p.take(other[opposite])
-        reach_o[opposite] = lon_reach(np.maximum(v_lon_o[opposite], 0.0), p_x, p_x.lon_brake_min)
-        lat_left_o[opposite] = lateral_reach(-v_lat_o[opposite], p_x)
-        lat_right_o[opposite] = lateral_reach(v_lat_o[opposite], p_x)
-    lon_d_min = combine_same_dir(reach_o, stop_r, p.min_lon_gap[other])
-    if opposite.size:  # speeds towards each other; a car in its correct lane brakes at b_corr, one in the
-        # oncoming lane at b_min
         r, o = ref[opposite], other[opposite]
-        p_r, p_o = p.take(r), p.take(o)
+        p_r, p_o = frame.params.take(r), frame.params.take(o)
+        lat_left_o[opposite] = lateral_reach(-v_lat_o[opposite], p_o)
+        lat_right_o[opposite] = lateral_reach(v_lat_o[opposite], p_o)
         lon_d_min[opposite] = combine_opposite(
             lon_reach(np.maximum(frame.v_lon[r], 0.0), p_r,
                       np.where(frame.wrong_way[r], p_r.lon_brake_min, p_r.lon_brake_min_correct)),
             lon_reach(np.maximum(-v_lon_o[opposite], 0.0), p_o,
                       np.where(frame.wrong_way[o], p_o.lon_brake_min, p_o.lon_brake_min_correct)),
             p_r.min_lon_gap, p_o.min_lon_gap)
-    lat_d_min = combine_lateral(np.where(other_left, lat_left_o, frame.lat_reach_as_left[ref]),
-                                np.where(other_left, frame.lat_reach_as_right[ref], lat_right_o),
-                                p.lat_fluctuation_margin[np.where(other_left, other, ref)],
-                                p.lat_fluctuation_margin[np.where(other_left, ref, other)])
-
-    # A same-direction pair where one car's lane ends beside the other's is a merge.
-    ends_r, ends_o = network.lane_ends[frame.lane[ref]], network.lane_ends[frame.lane[other]]
-    merge = same & ((ends_r & (network.lane_left[frame.lane[ref]] == frame.lane[other])) |
-                    (ends_o & (network.lane_left[frame.lane[other]] == frame.lane[ref])))
-    kind = np.where(merge, SITUATION_CODES.index(SituationType.MERGE), kind)
-
-    # Name the pair by id order: a < b.
-    a_is_ref = snapshot.ids[ref] < snapshot.ids[other]
-    v_ref_lon = np.maximum(frame.v_lon[ref], 0.0)
-    v_other_lon = np.where(same, np.maximum(v_lon_o, 0.0), np.maximum(-v_lon_o, 0.0))
-    v_lat_r = frame.v_lat[ref]
-    return PairSituations(
-        a=np.where(a_is_ref, ref, other), b=np.where(a_is_ref, other, ref), kind=kind,
-        a_is_rear=np.where(same, ~a_is_ref, a_is_ref),  # opposite pairs: "a is the reference car"
-        a_is_left=np.where(a_is_ref, ~other_left, other_left), lon_gap=lon_gap, lat_gap=lat_gap,
-        lat_offset=np.abs(d_o - frame.d[ref]), v_lon_a=np.where(a_is_ref, v_ref_lon, v_other_lon), v_lon_b=np.where(a_is_ref, v_other_lon, v_ref_lon),
-        v_lat_a=np.where(a_is_ref, v_lat_r, v_lat_o), v_lat_b=np.where(a_is_ref, v_lat_o, v_lat_r),
-        lon_d_min=lon_d_min, lat_d_min=lat_d_min,
-        lon_safe=is_safe_distance(lon_gap, lon_d_min), lat_safe=is_safe_distance(lat_gap, lat_d_min),
-        wrong_way_a=frame.wrong_way[np.where(a_is_ref, ref, other)],
-        wrong_way_b=frame.wrong_way[np.where(a_is_ref, other, ref)])
+    from .road_kernel import FLAG_COLUMNS, FLOAT_COLUMNS, INT_COLUMNS, road_pairs  # numba: at the first road pair
+    rank = np.empty(len(snapshot), dtype=np.int64)  # id order (a < b), compared as numbers
+    rank[np.argsort(snapshot.ids, kind="stable")] = np.arange(len(snapshot))
+    floats, ints, flags = road_pairs(
+        ref, other, kind, pos_o, d_o, v_lon_o, v_lat_o, lat_left_o, lat_right_o, lon_d_min, rank, frame.lane,
+        frame.pos, frame.d, frame.v_lon, frame.v_lat, frame.half_lon, frame.half_lat, frame.reach_min,
+        frame.stop_max, frame.lat_reach_as_left, frame.lat_reach_as_right, frame.params.min_lon_gap,
+        frame.params.lat_fluctuation_margin, frame.wrong_way, network.lane_ends, network.lane_left)
+    return PairSituations(**dict(zip(FLOAT_COLUMNS, floats)), **dict(zip(INT_COLUMNS, ints)),
+                          **dict(zip(FLAG_COLUMNS, flags)))
