@@ -311,8 +311,8 @@ class EpsilonPlanner:
         startable = {Lat.KEEP: True,
                      Lat.LEFT: cfg.lane_changes and self.network.lane_left[lane] >= 0 and Lat.LEFT not in held,
                      Lat.RIGHT: cfg.lane_changes and self.network.lane_right[lane] >= 0 and Lat.RIGHT not in held}
-        return [p for p in out if all(frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)
-                                      for lat in p.lats)]
+        allowed = {lat for lat in Lat if frame.exists[_target(lat)] and (startable[lat] or lat is ongoing.lat)}
+        return [p for p in out if allowed.issuperset(p.lats)]
 
     def _intentions(self, frame: RoadFrame, key: KeyVehicles, snapshot: WorldSnapshot) -> np.ndarray:
         chain = key.chain

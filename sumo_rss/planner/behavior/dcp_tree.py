@@ -6,6 +6,7 @@ change once. The first layer lasts what remains of the ongoing action, so decisi
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from enum import Enum
 
@@ -31,28 +32,29 @@ class Action:
 
 @dataclass(frozen=True)
 class Policy:
-    """One sequence of actions (a path through the tree)."""
+    """One sequence of actions (a path through the tree). Its derived properties are computed once per policy: the
+    planner gets the same policy objects every cycle from :func:`valid_policies`."""
 
     lon: Lon
     lats: tuple[Lat, ...]
     durations: tuple[float, ...]  # [s] per layer
 
-    @property
+    @functools.cached_property
     def name(self) -> str:
         """E.g. 'M:KKLLL'."""
         return f"{self.lon.value}:{''.join(lat.value for lat in self.lats)}"
 
-    @property
+    @functools.cached_property
     def lateral(self) -> Lat:
         """The sequence-level lateral behaviour: its first lane change, else keep."""
         return next((lat for lat in self.lats if lat is not Lat.KEEP), Lat.KEEP)
 
-    @property
+    @functools.cached_property
     def is_cancel(self) -> bool:
         """A lane change that returns to keep (e.g. 'LKKKK' started during an ongoing left change)."""
         return self.lats[0] is not Lat.KEEP and Lat.KEEP in self.lats[1:]
 
-    @property
+    @functools.cached_property
     def is_valid(self) -> bool:
         """No direct switch between opposite lane changes (L→R or R→L): pre-deleted, never simulated."""
         return not any({a, b} == {Lat.LEFT, Lat.RIGHT} for a, b in zip(self.lats, self.lats[1:]))
@@ -91,6 +93,8 @@ def build_tree(ongoing: Action, layers: int = 5, layer_duration: float = 1.0) ->
     return [Policy(lon, seq, durations) for lon in Lon for seq in sequences]
 
 
-def valid_policies(ongoing: Action, layers: int = 5, layer_duration: float = 1.0) -> list[Policy]:
-    """The policies that are simulated (27 with an ongoing keep, 15 during a lane change)."""
-    return [p for p in build_tree(ongoing, layers, layer_duration) if p.is_valid]
+@functools.lru_cache(maxsize=256)
+def valid_policies(ongoing: Action, layers: int = 5, layer_duration: float = 1.0) -> tuple[Policy, ...]:
+    """The policies that are simulated (27 with an ongoing keep, 15 during a lane change); the same tuple for the
+    same arguments (built once: the tree's Python objects cost ~0.2 ms a cycle)."""
+    return tuple(p for p in build_tree(ongoing, layers, layer_duration) if p.is_valid)

@@ -16,7 +16,8 @@ ego box (inflated) meets another vehicle's box is invalid from that step on.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import functools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -143,6 +144,21 @@ def step_times(durations: tuple[float, ...], sim_step: float) -> tuple[np.ndarra
     return np.array(times), np.array(ends)
 
 
+@functools.lru_cache(maxsize=16)
+def _vehicle_tables(settings: SimSettings, n: int) -> tuple[IdmParams, np.ndarray, np.ndarray, np.ndarray]:
+    """The per-vehicle parameters of ``n`` vehicles (column 0 the ego) in the kernel's form, built once per settings
+    and vehicle count (read, never written): the IDM's (IdmParams of [n] arrays), the limits [fields, n] in
+    VehicleLimits' order, pure pursuit's [3, n] (gain, min, max look-ahead) and the evasive speed-up's largest
+    acceleration [n] [m/s²]."""
+    cols = np.arange(n)
+    idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
+    limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
+    evasive_max_accel = np.where(cols == 0, np.maximum(settings.evasive_accel, limits.max_accel), limits.max_accel)
+    pursuit = np.array([np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit)])
+    table = [getattr(limits, name) for name in VehicleLimits.__dataclass_fields__]
+    return idm, _c(table, np.float64), _c(pursuit, np.float64), _c(evasive_max_accel, np.float64)
+
+
 def _per_vehicle(ego: Any, agent: Any, n: int) -> Any:
     """A parameter dataclass whose fields are [n] arrays: the ego's values in column 0, the agents' after."""
     values = {}
@@ -197,13 +213,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     for layer, (first, parent, inverse) in enumerate(tree):
         firsts[layer, :first.size], parents[layer, :first.size], inverses[layer] = first, parent, inverse
     counts = np.array([first.size for first, _, _ in tree], dtype=np.int64)
-    cols = np.arange(n)
-    agent_idm = _per_vehicle(settings.ego_idm, settings.agent_idm, n)
-    limits = _per_vehicle(settings.ego_limits, settings.agent_limits, n)
-    evasive_max_accel = np.where(cols == 0, np.maximum(settings.evasive_accel, limits.max_accel), limits.max_accel)
-    pursuit = np.array([np.where(cols == 0, e, a) for e, a in zip(settings.ego_pursuit, settings.agent_pursuit)])
+    agent_idm, limits, pursuit, evasive_max_accel = _vehicle_tables(settings, n)
     rss_following = settings.rss_following and n > 1
-    front_worst = hardest_braking(rss_agents.take(cols[1:])) if rss_following else rss_agents
+    front_worst = hardest_braking(rss_agents.take(np.arange(1, n))) if rss_following else rss_agents
     held_gap = np.full(n + 1, np.inf)  # by leader column; n: no car ahead
     if cut_in_gap is not None:
         held_gap[:n] = cut_in_gap
@@ -226,8 +238,7 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     vehicle_samples, ego_samples, valid, barrier_steps = run(
         _c(t, f64), _c(layer_end, i64), firsts, parents, inverses, counts, _c(state, f64), _c(vehicles.length, f64),
         _c(vehicles.width, f64), _c(idm_of_rollout, f64), _c(v0_of_rollout, f64),
-        _c([getattr(limits, name) for name in VehicleLimits.__dataclass_fields__], f64), _c(pursuit, f64),
-        _c(evasive_max_accel, f64), rss_table(rss_agents, n), rss_table(rss_ego, 1), rss_table(front_worst, 1),
+        limits, pursuit, evasive_max_accel, rss_table(rss_agents, n), rss_table(rss_ego, 1), rss_table(front_worst, 1),
         rss_table(junction_area.params if junction_area is not None else rss_ego, 1), _c(rollouts.ego_chain, i64),
         _c(rollouts.agent_chain, i64), _c(rollouts.ego_backup, np.bool_), _c(frame.centre, f64),
         _c(frame.slope_grid, f64), _c(frame.extent, f64), _c(frame.end_s, f64), _c(frame.exists, np.bool_),
@@ -253,8 +264,8 @@ def _c(values: Any, dtype: type) -> np.ndarray:
 def _idm_per_rollout(idm: IdmParams, ego_spacing_scale: np.ndarray, n: int) -> np.ndarray:
     """Per-vehicle IDM parameters ``idm`` ([n] fields) for every rollout as one [fields, R, n] array (fields in
     IdmParams' order), the ego's s0 and T times its rollout's ``ego_spacing_scale`` [R]."""
-    scale = np.ones((ego_spacing_scale.shape[0], n))
-    scale[:, 0] = ego_spacing_scale
-    scaled = replace(idm, s0=idm.s0[None, :] * scale, headway=idm.headway[None, :] * scale)
-    return np.stack([np.broadcast_to(np.asarray(getattr(scaled, name), dtype=float), scale.shape)
-                     for name in _IDM_FIELDS])
+    out = np.empty((len(_IDM_FIELDS), ego_spacing_scale.shape[0], n))
+    out[:] = np.array([getattr(idm, name) for name in _IDM_FIELDS], dtype=float)[:, None, :]
+    for name in ("s0", "headway"):
+        out[_IDM_FIELDS.index(name), :, 0] *= ego_spacing_scale
+    return out

@@ -82,6 +82,7 @@ def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, 
     lane_slope = np.empty((1, n))
     tracked_chain = np.empty((1, n), dtype=np.int64)
     gaps = np.zeros((1, 2), dtype=np.int64)
+    scratch = np.empty((4, n))  # _step_rollout's per-vehicle temporaries, allocated once
     for k in range(n_steps + 1):
         branching = k < n_steps and (layer < 0 or k >= layer_end[layer])
         if branching:  # a new layer: every prefix continues as its children
@@ -111,7 +112,7 @@ def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, 
                           centres, cell, gaps, lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap,
                           ego_band, barrier_steps, length, width, idm, v0, limits, pursuit, evasive_max_accel,
                           rss_table, rss_ego_row, front_worst_row, junction_row, backup, slope_grid, held_gap,
-                          owed_due, ks, gs)
+                          owed_due, ks, gs, scratch)
         cell, frac = _locate(moved[0], frame_s0, centre.shape[1])
         for g in range(moved.shape[1]):
             for i in range(n):
@@ -235,13 +236,13 @@ def _record(k, recorded, inverse, state, now_chain, lead_gap, lead_speed, free_g
 def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_slope, centres, cell, gaps,
                   lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap, ego_band, barrier_steps, length,
                   width, idm, v0, limits, pursuit, evasive_max_accel, rss_table, rss_ego_row, front_worst_row,
-                  junction_row, backup, slope_grid, held_gap, owed_due, ks, gs):
+                  junction_row, backup, slope_grid, held_gap, owed_due, ks, gs, scratch):
     """One step of prefix ``g`` (representative rollout ``rollout``) ending at ``t_end`` [s]: every vehicle's
-    commands and its move, into ``moved`` [fields, G, n]."""
+    commands and its move, into ``moved`` [fields, G, n]. ``scratch`` [4, n]: room for its temporaries."""
     n = length.size
     s, d, heading, v = state[0, g], state[1, g], state[2, g], state[3, g]
     rss_ego, front_worst, junction = rss_row(rss_ego_row, 0), rss_row(front_worst_row, 0), rss_row(junction_row, 0)
-    ell, lane_target = np.empty(n), np.empty(n)
+    ell, lane_target, slope, speed_cmd = scratch[0], scratch[1], scratch[2], scratch[3]
     for i in range(n):
         ell[i] = lookahead(v[i], pursuit[0, i], pursuit[1, i], pursuit[2, i])
         lane_target[i] = centres[tracked[g, i], g, i] + np.tan(lane_slope[g, i]) * ell[i]
@@ -250,7 +251,6 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
     hold = evasive = False
     lc_cmd = evasive_v0 = 0.0
     if changing:
-        slope = np.empty(n)
         for i in range(n):
             slope[i] = slope_grid[tracked[g, 0], cell[g, i]]
         front, rear = gaps[g, 0], gaps[g, 1]
@@ -261,7 +261,6 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
         hold = barrier and np.abs(d[0] - centres[tracked[g, 0], g, 0]) >= ego_band[g]
         evasive = np.isfinite(evasive_v0)
         evasive_v0 = min(evasive_v0, ks.speed_limit)  # into the gap, within the speed limit
-    speed_cmd = np.empty(n)
     for i in range(n):
         p = _idm_row(idm, rollout, i)
         ego = i == 0

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..lanes import CURRENT
 from ..road_frame import GRID_STEP, RoadFrame
+from .corridor_kernel import cube_chain, rasterise
 from .ssc_qp import MotionFailure
 
 
@@ -143,12 +144,9 @@ def occupancy(road: RoadLayer, times: np.ndarray, ego_s: float, ego_length: floa
     half_d = 0.5 * (length * sin + width * cos) + reach_d + c.margin
     s_lo, s_hi = _cells_touching(s - half_s, s + half_s, origin, c.s_res)
     d_lo, d_hi = _cells_touching(d - half_d, d + half_d, c.d_min, c.d_res)
-    # Each box is the outer product of its s and d intervals; a slice's union is one matrix product.
-    i, j = np.arange(c.s_cells), np.arange(c.d_cells)
-    in_s = ((i >= s_lo[..., None]) & (i <= s_hi[..., None])).astype(np.float32)  # [K, n, S]
-    in_d = ((j >= d_lo[..., None]) & (j <= d_hi[..., None])).astype(np.float32)  # [K, n, D]
-    dynamic = np.matmul(in_s.transpose(0, 2, 1), in_d) > 0.0
-    return Grid(dynamic | static[None], times, origin, c)
+    dynamic = rasterise(s_lo, s_hi, d_lo, d_hi, c.s_cells, c.d_cells)  # each box: its s and d intervals' product
+    dynamic |= static[None]
+    return Grid(dynamic, times, origin, c)
 
 
 def _edge_moved_to(off_road: np.ndarray, row: int, col: int, max_shift: int) -> np.ndarray:
@@ -240,71 +238,12 @@ def build_corridor(grid: Grid, seeds_s: np.ndarray, seeds_d: np.ndarray, v0: flo
     si, di, ti = si[keep], di[keep], ti[keep]
     if si.size < 2:
         raise MotionFailure("corridor_seeds", "fewer than two seeds inside the grid")
-    cubes = [_grown_cube(grid, si, di, ti, 0, 1, v0)]
-    last_in = 1
-    for k in range(2, si.size):
-        cube = cubes[-1]
-        if cube[0] <= si[k] <= cube[1] and cube[2] <= di[k] <= cube[3] and ti[k] <= cube[5]:
-            last_in = k
-            continue
-        cube[5] = ti[last_in]
-        cubes.append(_grown_cube(grid, si, di, ti, last_in, k, v0))
-        last_in = k
-    cubes[-1][5] = ti[-1]
-    cells = np.array(cubes, dtype=int)
+    cells, a, b = cube_chain(grid.occupied, si, di, ti, grid.times, float(v0), c.s_back, c.s_res, c.reach_accel,
+                             c.reach_brake, c.reach_time, c.min_back_cells, c.step_cells, c.min_slices)
+    if a >= 0:
+        raise MotionFailure("corridor_blocked", f"seeds {a}-{b} at t = {grid.times[ti[b]]:.1f} s are not free")
     knots = np.concatenate([grid.times[cells[:, 4]], grid.times[cells[-1:, 5]]])
     bounds = np.stack([
         np.stack([grid.s_origin + c.s_res * (cells[:, 0] - 0.5), grid.s_origin + c.s_res * (cells[:, 1] + 0.5)], -1),
         np.stack([c.d_min + c.d_res * (cells[:, 2] - 0.5), c.d_min + c.d_res * (cells[:, 3] + 0.5)], -1)], axis=1)
     return Corridor(knots, bounds, cells)
-
-
-def _grown_cube(grid: Grid, si: np.ndarray, di: np.ndarray, ti: np.ndarray, a: int, b: int, v0: float) -> list[int]:
-    """The bounding box of seeds a and b, checked free and inflated: [s_lo, s_hi, d_lo, d_hi, t_lo, t_hi]."""
-    c = grid.settings
-    occ = grid.occupied
-    K, S, D = occ.shape
-    box = [min(si[a], si[b]), max(si[a], si[b]), min(di[a], di[b]), max(di[a], di[b]), ti[a], ti[b]]
-    if occ[box[4]:box[5] + 1, box[0]:box[1] + 1, box[2]:box[3] + 1].any():
-        raise MotionFailure("corridor_blocked", f"seeds {a}-{b} at t = {grid.times[ti[b]]:.1f} s are not free")
-    plane = occ[box[4]:box[5] + 1].any(axis=0)  # [S, D] blocked at any time of the cube
-    t = float(grid.times[min(box[4] + 2, K - 1)])
-    s0 = c.s_back  # the ego's initial s relative to the grid origin
-    s_up = s0 + v0 * t + 0.5 * c.reach_accel * t * t + v0 * c.reach_time
-    s_down = s0 + v0 * t - 0.5 * c.reach_brake * t * t - v0 * c.reach_time
-    limits = (max(min(int(np.floor(s_up / c.s_res)), S - 1), box[1]),
-              min(max(int(np.ceil(s_down / c.s_res)), c.min_back_cells), box[0]), D - 1, 0)
-    active = [True, True, True, True]  # +s, −s, +d, −d
-    while active[2] or active[3]:
-        for direction in range(4):
-            if active[direction]:
-                active[direction] = _grow(plane, box, direction, c.step_cells, limits[direction])
-    for direction in (0, 1):
-        if active[direction]:
-            _grow(plane, box, direction, S, limits[direction])
-    while box[5] - box[4] < c.min_slices and box[5] + 1 < K and \
-            not occ[box[5] + 1, box[0]:box[1] + 1, box[2]:box[3] + 1].any():
-        box[5] += 1
-    return box
-
-
-def _grow(plane: np.ndarray, box: list[int], direction: int, step: int, limit: int) -> bool:
-    """Grow ``box`` in ``direction`` (0 +s, 1 −s, 2 +d, 3 −d) by up to ``step`` free layers, not beyond index
-    ``limit``; whether it can grow further."""
-    if direction == 0:
-        end = min(box[1] + step, limit)
-        layers = plane[box[1] + 1:end + 1, box[2]:box[3] + 1].any(axis=1)
-    elif direction == 1:
-        end = max(box[0] - step, limit)
-        layers = plane[end:box[0], box[2]:box[3] + 1].any(axis=1)[::-1]
-    elif direction == 2:
-        end = min(box[3] + step, limit)
-        layers = plane[box[0]:box[1] + 1, box[3] + 1:end + 1].any(axis=0)
-    else:
-        end = max(box[2] - step, limit)
-        layers = plane[box[0]:box[1] + 1, end:box[2]].any(axis=0)[::-1]
-    free = int(layers.argmax()) if layers.size else 0  # the first blocked layer (argmax: 0 when none is)
-    if free < layers.size and not layers[free]:
-        free = layers.size
-    box[(1, 0, 3, 2)[direction]] += free if direction in (0, 2) else -free
-    return free == step and layers.size == step
