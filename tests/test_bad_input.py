@@ -329,7 +329,7 @@ CASES.update({
     "fcd-time-nan": Case(audit(fcd_text().replace('time="0.10"', 'time="nan"')), (
         "f.xml", "<timestep> (after time step 0.0 s): time: expected a number of seconds")),
     "fcd-time-going-back": Case(audit(fcd_text().replace('time="0.20"', 'time="0.05"')), (
-        "f.xml", "time step 0.05 s does not follow 0.1 s")),
+        "f.xml", "time step 0.05 s comes after 0.1 s: time: expected a time after the step before")),
     "fcd-time-steps-1-us-apart": Case(audit(fcd_text().replace('time="0.10"', 'time="0.000001"')), (
         "f.xml", "time: expected at least 0.001 s after the time step before")),
     "fcd-time-1e300": Case(audit(fcd_text().replace('time="0.20"', 'time="1e300"')), ("f.xml", "time: expected at most")),

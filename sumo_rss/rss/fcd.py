@@ -24,6 +24,7 @@ from ..errors import SumoRssError, cut, listed, shown
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
+from ..sim.persons import PersonSnapshot
 from ..sim.snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
@@ -34,7 +35,8 @@ from .fcd_checks import SIGNALS_FORM, StepValues, check_step
 from .fcd_parse import FcdParser, FcdStep
 from .fcd_persons import person_snapshot
 from .numbering import Numbering
-from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
+from .record_checks import (check_collision_record, check_collisions_in_fcd, warn_late_signal_states,
+                            warn_without_signal_states)
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
 
@@ -116,17 +118,34 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
                        bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"),
                        heights={t: p.height for t, p in types.items()})
     named_routes: dict[str, tuple[str, ...]] = {}
-    for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
-        if elem.tag == "route" and elem.get("id"):
-            named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
-        elif elem.tag in ("flow", "vehicle"):
-            info.types[elem.get("id", "")] = elem.get("type", "DEFAULT_VEHTYPE")
-            inside = elem.find("route")
-            if inside is not None:
-                info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
-            elif elem.get("route") in named_routes:
-                info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
+    for path, document in zip(files, documents):
+        for elem in document.iter():  # document order: a route before its use
+            if elem.tag == "route" and elem.get("id"):
+                named_routes[elem.get("id", "")] = _route_edges(path, elem, f"<route id={shown(elem.get('id'))}>",
+                                                                net_file)
+            elif elem.tag in ("flow", "vehicle"):
+                info.types[elem.get("id", "")] = elem.get("type", "DEFAULT_VEHTYPE")
+                inside = elem.find("route")
+                if inside is not None:
+                    info.routes[elem.get("id", "")] = _route_edges(
+                        path, inside, f"<{elem.tag} id={shown(elem.get('id', ''))}>: <route>", net_file)
+                elif elem.get("route") in named_routes:
+                    info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
     return info
+
+
+def _route_edges(path: Path, route: ET.Element, what: str, net_file: Path) -> tuple[str, ...]:
+    """The edges of a ``<route>`` element (``what`` names it in ``path``); FcdError naming the first edge that is not
+    one of ``net_file``'s (the audit follows each vehicle's route through the network)."""
+    from ..road.topology import read_topology
+
+    edges = tuple(route.get("edges", "").split())
+    known = read_topology(net_file).edges
+    unknown = [edge for edge in edges if edge not in known]
+    if unknown:
+        raise FcdError(f"{path}: {what}: edges: expected edges of {Path(net_file).name}, got {shown(unknown[0])} "
+                       "(not in it); is --net the network of this run?")
+    return edges
 
 
 def read_collisions(path: Path) -> list[CollisionEvent]:
@@ -225,6 +244,7 @@ class FcdReader:
         self._warned_jump = False  # about instantaneous lane changes
         self._warned_containers = False  # about containers, which are not audited
         self.people: set[str] = set()  # ids of the persons and containers in the file so far
+        self._walkers: set[str] = set()  # ids of the persons audited (walking) in the file so far
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -337,6 +357,26 @@ class FcdReader:
                                                               float(t in self.vehicles.bicycles)) for t in new]])
         return rows
 
+    def _check_person_edges(self, persons: PersonSnapshot, where: str) -> None:
+        """FcdError naming the first person on an edge that is not in the network."""
+        unknown = np.flatnonzero(self.network.find_edges(persons.edge_id) < 0)
+        if unknown.size:
+            k = int(unknown[0])
+            raise FcdError(f"{where}: person {shown(str(persons.ids[k]))}: edge: expected an edge of "
+                           f"{self.network.path.name}, got {shown(str(persons.edge_id[k]))} (not in it); is --net the "
+                           "network of this run?")
+
+    def _check_distinct_ids(self, new_vehicles: np.ndarray, persons: PersonSnapshot | None, where: str) -> None:
+        """FcdError where a person has the id of a vehicle of the file: the audit and its CSVs tell road users
+        apart by their ids alone (``new_vehicles``: the vehicles first seen at this step; the vehicles seen so far
+        are numbered)."""
+        shared = [v for v in new_vehicles.tolist() if v in self._walkers] if self._walkers else []
+        if persons is not None:
+            shared += [p for p in persons.ids.tolist() if p in self._numbers.number]
+        if shared:
+            raise FcdError(f"{where}: person and vehicle {shown(shared[0])}: id: expected the ids of persons and "
+                           "vehicles to differ (the audit tells road users apart by their ids; docs/outputs.md)")
+
     def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
         value = step.time
@@ -351,7 +391,9 @@ class FcdReader:
 
     def _snapshot(self, step: FcdStep, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
-            raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
+            what = "is repeated" if time == self._prev_time else f"comes after {self._prev_time} s"
+            raise FcdError(f"{self.path}: time step {time} s {what}: time: expected a time after the step before's "
+                           "(SUMO writes every step once, in time order; docs/outputs.md)")
         where = f"{self.path}, time step {time} s"
         self.people.update(step.unaudited)
         if step.unaudited and not self._warned_containers:
@@ -363,7 +405,9 @@ class FcdReader:
         except ValueError as exc:
             raise FcdError(str(exc)) from None
         if persons is not None:
+            self._check_person_edges(persons, where)
             self.people.update(persons.ids.tolist())
+            self._walkers.update(persons.ids.tolist())
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
             raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
@@ -422,7 +466,9 @@ class FcdReader:
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
+        known = len(self._numbers)
         number = self._numbers.of(id_column)
+        self._check_distinct_ids(ids[number >= known], persons, where)
         seen, prev = self._prev.of(number)
         prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)
@@ -515,6 +561,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     steps = 0
     unseen = reports.parties() if reports is not None else np.zeros(0, dtype=str)  # not in the FCD's steps so far
     for steps, snapshot in enumerate(reader, start=1):
+        if steps == 1:
+            warn_late_signal_states(signals, fcd, snapshot.time)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent:
             absent.difference_update(snapshot.ids.tolist())

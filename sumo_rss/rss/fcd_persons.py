@@ -7,20 +7,27 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import Counter
 
 import numpy as np
 
 from ..errors import shown
 from ..sim.persons import SUMO_PERSON_SIZE, PersonSnapshot
+from ..road.net_check import MAX_COORDINATE_M
 from ..sim.snapshot import compass_deg_to_heading
+from .fcd_checks import MAX_ANGLE_DEG, MAX_SPEED
 
 PERSON_ATTRIBUTES = ("id", "x", "y", "angle", "speed", "edge")  # what SUMO writes of a person by default
+# The bounds of a person's numbers (lowest, highest, unit): those of a vehicle's (fcd_checks).
+_BOUNDS = {"x": (-MAX_COORDINATE_M, MAX_COORDINATE_M, "m"), "y": (-MAX_COORDINATE_M, MAX_COORDINATE_M, "m"),
+           "angle": (-MAX_ANGLE_DEG, MAX_ANGLE_DEG, "degrees"), "speed": (0.0, MAX_SPEED, "m/s")}
 
 
 def person_snapshot(rows: list[list[str]], sizes: dict[str, tuple[float, float]], where: str) -> PersonSnapshot:
     """The walking persons of ``rows`` (per person: attribute name, value, name, value, ...); ``sizes``: vType →
     (length, width) [m] (SUMO's pedestrian size for a type not in it). ValueError naming ``where``, the person and
-    the attribute for one missing or not a finite number."""
+    the attribute for one missing, not a finite number or beyond a vehicle's bounds (a speed outside [0, 200] m/s, a
+    coordinate beyond 10⁸ m, an angle beyond ±720°), or a person listed twice."""
     persons = [dict(zip(r[0::2], r[1::2])) for r in rows]
     persons = sorted((p for p in persons if not p.get("vehicle")), key=lambda p: p.get("id", ""))  # as a session
     if not persons:
@@ -31,6 +38,10 @@ def person_snapshot(rows: list[list[str]], sizes: dict[str, tuple[float, float]]
                 raise ValueError(f"{where}: person {shown(p.get('id', '?'))} lacks the attribute {name!r} (needed: "
                                    f"{', '.join(PERSON_ATTRIBUTES)}; SUMO writes them by default)")
 
+    twice = next((i for i, count in Counter(p["id"] for p in persons).items() if count > 1), None)
+    if twice is not None:
+        raise ValueError(f"{where}: person {shown(twice)} is listed more than once")
+
     def numbers(name: str) -> np.ndarray:
         try:
             values = np.array([p[name] for p in persons], dtype=float)
@@ -40,6 +51,12 @@ def person_snapshot(rows: list[list[str]], sizes: dict[str, tuple[float, float]]
             bad = next(p for p in persons if not _finite(p[name]))
             raise ValueError(f"{where}: person {shown(bad['id'])}: {name}: expected a finite number, got "
                                f"{shown(bad[name])}")
+        low, high, unit = _BOUNDS[name]
+        outside = np.flatnonzero((values < low) | (values > high))
+        if outside.size:  # the vehicles' bounds (fcd_checks): absurd numbers only
+            bad = persons[int(outside[0])]
+            raise ValueError(f"{where}: person {shown(bad['id'])}: {name}: expected a number in [{low:g}, {high:g}] "
+                             f"{unit}, got {shown(bad[name])}")
         return values
 
     types = [p.get("type") or "DEFAULT_PEDTYPE" for p in persons]
