@@ -1,19 +1,20 @@
 """Damaged inputs found by a sweep of the command line with damaged copies of real runs' files, table-driven as
 tests/test_bad_input.py (whose helpers build them): a route over an edge the network does not have (it crashed the
-audit with a KeyError), persons whose values no person can have or that contradict the network or the vehicles,
-a time step written twice, report and view CSVs cut off mid-row (read as if whole), and a signal-state file that
-begins after the FCD (audited without a word). Each case must end with exit code 2 and one line naming the file and
-the field (docs/outputs.md, "Bad input, full disks and interruptions")."""
+audit with a KeyError); persons whose values no person can have or that contradict the network or the vehicles, a
+time step written twice, report and view CSVs cut off mid-row (all three read without a word). Each must end with
+exit code 2 and one line naming the file and the field (docs/outputs.md, "Bad input, full disks and
+interruptions"). Two that are suspicious, not impossible, must be named in a warning: a signal-state file that
+begins after the FCD, and an FCD of another network with the same lane ids whose cars are on its sidewalks."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 from sumo_rss.cli import main
 from sumo_rss.errors import SumoRssError
-from test_bad_input import (BATCH, ROUTES, TLS_STATES, Case, assert_one_line_error, audit, fcd_text, handlers,
-                            report, with_signal_states, write)
+from conftest import NETWORKS
+from test_bad_input import (BATCH, ROUTES, TLS_FCD, TLS_NET, TLS_STATES, Case, assert_one_line_error, audit,
+                            fcd_text, handlers, report, with_signal_states, write)
 
 __all__ = ["handlers"]  # the fixture, used by name
 
@@ -102,3 +103,16 @@ def test_signal_states_that_begin_after_the_fcd_are_named_in_a_warning(tmp_path,
     assert "f.xml (0 s): until then the links of those signals are audited as of equal priority" in err, err
     assert main(with_signal_states(TLS_STATES)(tmp_path / "whole")) == 0
     assert "begin after the first time step" not in capfd.readouterr().err
+
+
+def test_a_vehicle_on_a_sidewalk_is_named_in_a_warning(tmp_path, capfd, handlers):
+    """intersection_tls's FCD audited on intersection_tls_peds's net, which has the same lane ids with a sidewalk
+    as lane 0 of every edge: car a on E_in_0 (2.6 m from the sidewalk's centre line, so within the positions'
+    tolerance) is on a lane only pedestrians may use, which SUMO never does: said in a warning."""
+    peds_net = NETWORKS / "intersection_tls_peds" / "intersection_tls_peds.net.xml"
+    assert main(audit(TLS_FCD, net=peds_net, routes=None)(tmp_path)) == 0
+    err = capfd.readouterr().err
+    assert ("f.xml, time step 0.0 s: vehicle 'a' is on lane 'E_in_0', which only pedestrians may use in "
+            "intersection_tls_peds.net.xml; is --net the network of this run?") in err, err
+    assert main(audit(TLS_FCD, net=TLS_NET, routes=None)(tmp_path / "own")) == 0
+    assert "only pedestrians may use" not in capfd.readouterr().err

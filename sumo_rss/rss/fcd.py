@@ -24,16 +24,15 @@ from ..errors import SumoRssError, cut, listed, shown
 from ..road.network import RoadNetwork, UnknownLaneError
 from ..sim.collisions import CollisionEvent, ContactTracker
 from ..sim.demand import EGO_TYPE
-from ..sim.persons import PersonSnapshot
 from ..sim.snapshot import BACKGROUND_CLASS, BICYCLE_CLASS, EGO_CLASS, WorldSnapshot, compass_deg_to_heading
 from ..sumo_home import vtype_attribute_names
 from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_elements
 from .auditor import AuditResult, Auditor, ParamResolver
 from .params import EvasiveParams
 from .occlusion import OccluderEdges, OcclusionParams
-from .fcd_checks import SIGNALS_FORM, StepValues, check_step
+from .fcd_checks import SIGNALS_FORM, StepValues, check_step, pedestrian_lanes, warn_on_walkways
 from .fcd_parse import FcdParser, FcdStep
-from .fcd_persons import person_snapshot
+from .fcd_persons import check_distinct_ids, check_person_edges, person_snapshot
 from .numbering import Numbering
 from .record_checks import (check_collision_record, check_collisions_in_fcd, warn_late_signal_states,
                             warn_without_signal_states)
@@ -243,6 +242,7 @@ class FcdReader:
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
         self._warned_containers = False  # about containers, which are not audited
+        self._warned_walkway = False  # about a vehicle on a lane only pedestrians may use
         self.people: set[str] = set()  # ids of the persons and containers in the file so far
         self._walkers: set[str] = set()  # ids of the persons audited (walking) in the file so far
         self._step: float | None = None  # [s] the file's first step length
@@ -357,25 +357,9 @@ class FcdReader:
                                                               float(t in self.vehicles.bicycles)) for t in new]])
         return rows
 
-    def _check_person_edges(self, persons: PersonSnapshot, where: str) -> None:
-        """FcdError naming the first person on an edge that is not in the network."""
-        unknown = np.flatnonzero(self.network.find_edges(persons.edge_id) < 0)
-        if unknown.size:
-            k = int(unknown[0])
-            raise FcdError(f"{where}: person {shown(str(persons.ids[k]))}: edge: expected an edge of "
-                           f"{self.network.path.name}, got {shown(str(persons.edge_id[k]))} (not in it); is --net the "
-                           "network of this run?")
-
-    def _check_distinct_ids(self, new_vehicles: np.ndarray, persons: PersonSnapshot | None, where: str) -> None:
-        """FcdError where a person has the id of a vehicle of the file: the audit and its CSVs tell road users
-        apart by their ids alone (``new_vehicles``: the vehicles first seen at this step; the vehicles seen so far
-        are numbered)."""
-        shared = [v for v in new_vehicles.tolist() if v in self._walkers] if self._walkers else []
-        if persons is not None:
-            shared += [p for p in persons.ids.tolist() if p in self._numbers.number]
-        if shared:
-            raise FcdError(f"{where}: person and vehicle {shown(shared[0])}: id: expected the ids of persons and "
-                           "vehicles to differ (the audit tells road users apart by their ids; docs/outputs.md)")
+    @functools.cached_property
+    def _walkways(self) -> np.ndarray:
+        return pedestrian_lanes(self.network)
 
     def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
@@ -405,7 +389,7 @@ class FcdReader:
         except ValueError as exc:
             raise FcdError(str(exc)) from None
         if persons is not None:
-            self._check_person_edges(persons, where)
+            check_person_edges(where, persons, self.network)
             self.people.update(persons.ids.tolist())
             self._walkers.update(persons.ids.tolist())
         if len(step) and not (step.has("id") and step.has("lane")):
@@ -423,6 +407,8 @@ class FcdReader:
             missing = sorted(set(lane_id[lane < 0].tolist()))
             raise FcdError(f"{where}: lanes not in {self.network.path.name}: {listed(missing)}; is --net the network "
                            "of this run?")
+        if not self._warned_walkway:
+            self._warned_walkway = warn_on_walkways(where, ids, lane, self.network, self._walkways)
         # Without 'type' in the FCD, the route files' vehicles and flows tell it.
         types = step.column("type")
         if None in types or "" in types:
@@ -468,7 +454,7 @@ class FcdReader:
             self._check_step(dt, time)
         known = len(self._numbers)
         number = self._numbers.of(id_column)
-        self._check_distinct_ids(ids[number >= known], persons, where)
+        check_distinct_ids(where, ids[number >= known], self._walkers, persons, self._numbers.number)
         seen, prev = self._prev.of(number)
         prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)

@@ -14,8 +14,9 @@ import numpy as np
 from ..errors import shown
 from ..sim.persons import SUMO_PERSON_SIZE, PersonSnapshot
 from ..road.net_check import MAX_COORDINATE_M
+from ..road.network import RoadNetwork
 from ..sim.snapshot import compass_deg_to_heading
-from .fcd_checks import MAX_ANGLE_DEG, MAX_SPEED
+from .fcd_checks import MAX_ANGLE_DEG, MAX_SPEED, fcd_error
 
 PERSON_ATTRIBUTES = ("id", "x", "y", "angle", "speed", "edge")  # what SUMO writes of a person by default
 # The bounds of a person's numbers (lowest, highest, unit): those of a vehicle's (fcd_checks).
@@ -65,6 +66,29 @@ def person_snapshot(rows: list[list[str]], sizes: dict[str, tuple[float, float]]
                           compass_deg_to_heading(numbers("angle")), numbers("speed"),
                           np.array([p["edge"] for p in persons], dtype=str), np.array(types, dtype=str),
                           size[:, 0].copy(), size[:, 1].copy())
+
+
+def check_person_edges(where: str, persons: PersonSnapshot, network: RoadNetwork) -> None:
+    """FcdError naming ``where`` and the first person on an edge that is not in ``network``."""
+    unknown = np.flatnonzero(network.find_edges(persons.edge_id) < 0)
+    if unknown.size:
+        k = int(unknown[0])
+        raise fcd_error(f"{where}: person {shown(str(persons.ids[k]))}: edge: expected an edge of "
+                         f"{network.path.name}, got {shown(str(persons.edge_id[k]))} (not in it); is --net the "
+                         "network of this run?")
+
+
+def check_distinct_ids(where: str, new_vehicles: np.ndarray, persons_seen: set[str], persons: PersonSnapshot | None,
+                       vehicles_seen: dict[str, int]) -> None:
+    """FcdError naming ``where`` where a person has the id of a vehicle of the file: the audit and its CSVs tell
+    road users apart by their ids alone. ``new_vehicles``: those first seen at this step; ``persons_seen``,
+    ``vehicles_seen``: the ids seen so far (this step's vehicles among them)."""
+    shared = [v for v in new_vehicles.tolist() if v in persons_seen] if persons_seen else []
+    if persons is not None:
+        shared += [p for p in persons.ids.tolist() if p in vehicles_seen]
+    if shared:
+        raise fcd_error(f"{where}: person and vehicle {shown(shared[0])}: id: expected the ids of persons and "
+                         "vehicles to differ (the audit tells road users apart by their ids; docs/outputs.md)")
 
 
 def _finite(text: str) -> bool:
