@@ -13,7 +13,7 @@ import pytest
 from sumo_rss.cli import main
 from sumo_rss.errors import SumoRssError
 from conftest import NETWORKS
-from test_bad_input import (BATCH, ROUTES, TLS_FCD, TLS_NET, TLS_STATES, Case, assert_one_line_error, audit,
+from test_bad_input import (BATCH, ROUTES, TLS_FCD, TLS_NET, TLS_STATES, Case, assert_refused, audit,
                             fcd_text, handlers, report, with_signal_states, write)
 
 __all__ = ["handlers"]  # the fixture, used by name
@@ -69,11 +69,7 @@ CASES: dict[str, Case] = {
 
 @pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
 def test_a_damaged_input_is_one_line_naming_the_file_and_field_and_leaves_nothing(case, tmp_path, capfd, handlers):
-    argv = CASES[case].build(tmp_path)
-    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
-    code = main(argv)
-    assert_one_line_error(code, capfd.readouterr().err, CASES[case].named)
-    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing written, nothing left
+    assert_refused(CASES[case], tmp_path, capfd)
 
 
 def test_the_valid_person_and_routes_the_cases_damage_are_valid(tmp_path, capfd, handlers):
