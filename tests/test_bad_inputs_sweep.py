@@ -1,10 +1,10 @@
 """Damaged inputs found by a sweep of the command line with damaged copies of real runs' files, table-driven as
 tests/test_bad_input.py (whose helpers build them): a route over an edge the network does not have (it crashed the
 audit with a KeyError); persons whose values no person can have or that contradict the network or the vehicles, a
-time step written twice, report and view CSVs cut off mid-row (all three read without a word). Each must end with
-exit code 2 and one line naming the file and the field (docs/outputs.md, "Bad input, full disks and
-interruptions"). Two that are suspicious, not impossible, must be named in a warning: a signal-state file that
-begins after the FCD, and an FCD of another network with the same lane ids whose cars are on its sidewalks."""
+time step written twice, report and view CSVs cut off mid-row, an occluder corner at 1e300 m (all read without a
+word). Each must end with exit code 2 and one line naming the file and the field (docs/outputs.md, "Bad input, full
+disks and interruptions"). Two that are suspicious, not impossible, must be named in a warning: a signal-state file
+that begins after the FCD, and an FCD of another network with the same lane ids whose cars are on its sidewalks."""
 from __future__ import annotations
 
 
@@ -56,6 +56,11 @@ CASES: dict[str, Case] = {
                                                                "than once",)),
     "fcd-person-with-a-vehicles-id": Case(audit(with_person(id="b")), (
         "f.xml, time step 0.1 s: person and vehicle 'b': id: expected the ids of persons and vehicles to differ",)),
+    "occluders-shape-1e300": Case(lambda folder: audit()(folder) + ["--occluders", str(write(
+                                      folder, "o.poly.xml", '<additional><poly id="h" type="building" '
+                                      'shape="20,20 1e300,20 40,40"/></additional>'))],
+                                  ("o.poly.xml: <poly id='h'>: shape: expected three or more points",
+                                   "within 1e+08 m of the origin", "1e300")),
     "fcd-time-step-repeated": Case(audit(fcd_text().replace('time="0.20"', 'time="0.10"')), (
         "f.xml: time step 0.1 s is repeated: time: expected a time after the step before's",)),
     "report-summary-cut-mid-row": Case(report(**{"batch_summary.csv": cut_mid_row("batch_summary.csv")}), (
