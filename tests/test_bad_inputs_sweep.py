@@ -1,10 +1,11 @@
 """Damaged inputs found by a sweep of the command line with damaged copies of real runs' files, table-driven as
 tests/test_bad_input.py (whose helpers build them): a route over an edge the network does not have (it crashed the
 audit with a KeyError); persons whose values no person can have or that contradict the network or the vehicles, a
-time step written twice, report and view CSVs cut off mid-row, an occluder corner at 1e300 m (all read without a
-word). Each must end with exit code 2 and one line naming the file and the field (docs/outputs.md, "Bad input, full
-disks and interruptions"). Two that are suspicious, not impossible, must be named in a warning: a signal-state file
-that begins after the FCD, and an FCD of another network with the same lane ids whose cars are on its sidewalks."""
+time step written twice, an empty vehicle or person id or lane, report and view CSVs cut off mid-row, an occluder
+corner at 1e300 m (all read without a word). Each must end with exit code 2 and one line naming the file and the
+field (docs/outputs.md, "Bad input, full disks and interruptions"). Two that are suspicious, not impossible, must
+be named in a warning: a signal-state file that begins after the FCD, and an FCD of another network with the same
+lane ids whose cars are on its sidewalks."""
 from __future__ import annotations
 
 
@@ -61,6 +62,12 @@ CASES: dict[str, Case] = {
                                       'shape="20,20 1e300,20 40,40"/></additional>'))],
                                   ("o.poly.xml: <poly id='h'>: shape: expected three or more points",
                                    "within 1e+08 m of the origin", "1e300")),
+    "fcd-vehicle-id-empty": Case(audit(fcd_text(id="")), (
+        "f.xml, time step 0.1 s: vehicle '?' (vehicle 1 of the step): id: expected SUMO's vehicle id, got ''",)),
+    "fcd-lane-empty": Case(audit(fcd_text(lane="")), (
+        "f.xml, time step 0.1 s: vehicle 'a' (vehicle 1 of the step): lane: expected SUMO's lane id, got ''",)),
+    "fcd-person-id-empty": Case(audit(with_person(id="")), (
+        "f.xml, time step 0.1 s: person: id: expected SUMO's person id, got ''",)),
     "fcd-time-step-repeated": Case(audit(fcd_text().replace('time="0.20"', 'time="0.10"')), (
         "f.xml: time step 0.1 s is repeated: time: expected a time after the step before's",)),
     "report-summary-cut-mid-row": Case(report(**{"batch_summary.csv": cut_mid_row("batch_summary.csv")}), (

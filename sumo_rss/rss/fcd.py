@@ -395,14 +395,19 @@ class FcdReader:
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
             raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
-        id_column = step.column("id")
+        id_column, lane_column = step.column("id"), step.column("lane")
+        if "" in id_column or "" in lane_column:
+            name, column = ("id", id_column) if "" in id_column else ("lane", lane_column)
+            k = list(column).index("")
+            raise FcdError(f"{where}: vehicle {shown(id_column[k] or '?')} (vehicle {k + 1} of the step): {name}: "
+                           f"expected SUMO's {'vehicle' if name == 'id' else 'lane'} id, got ''")
         ids = np.array(id_column, dtype=str)
-        lane_id = np.array(step.column("lane"), dtype=str)
+        lane_id = np.array(lane_column, dtype=str)
         if len(set(id_column)) < len(ids):
             twice = next(v for v, count in Counter(id_column).items() if count > 1)
             raise FcdError(f"{where}: vehicle {shown(twice)} is listed more than once")
         x, y, angle, speed = (_numbers(step, name, where) for name in ("x", "y", "angle", "speed"))
-        lane = np.fromiter(map(self._lane_index.get, step.column("lane"), itertools.repeat(-1)), int, len(step))
+        lane = np.fromiter(map(self._lane_index.get, lane_column, itertools.repeat(-1)), int, len(step))
         if np.any(lane < 0):
             missing = sorted(set(lane_id[lane < 0].tolist()))
             raise FcdError(f"{where}: lanes not in {self.network.path.name}: {listed(missing)}; is --net the network "

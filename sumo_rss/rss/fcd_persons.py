@@ -39,6 +39,8 @@ def person_snapshot(rows: list[list[str]], sizes: dict[str, tuple[float, float]]
                 raise ValueError(f"{where}: person {shown(p.get('id', '?'))} lacks the attribute {name!r} (needed: "
                                    f"{', '.join(PERSON_ATTRIBUTES)}; SUMO writes them by default)")
 
+    if any(not p["id"] for p in persons):
+        raise ValueError(f"{where}: person: id: expected SUMO's person id, got ''")
     twice = next((i for i, count in Counter(p["id"] for p in persons).items() if count > 1), None)
     if twice is not None:
         raise ValueError(f"{where}: person {shown(twice)} is listed more than once")
