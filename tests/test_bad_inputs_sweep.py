@@ -42,7 +42,7 @@ def cut_mid_row(name: str) -> str:
 
 CASES: dict[str, Case] = {
     "vtypes-route-edge-not-in-the-net": Case(audit(routes=ROUTES.replace('edges="hw0 hw1 hw2"', 'edges="hw0 zz hw2"')), (
-        "r.rou.xml: <route id='r'>: edges: expected edges of highway.net.xml, got 'zz'", "--net")),
+        "r.rou.xml: <route id='r'>: edges: expected edges of the network highway.net.xml, got 'zz'",)),
     "vtypes-inline-route-edge-not-in-the-net": Case(audit(routes=ROUTES.replace(
         '<vehicle id="b" type="car" route="r" depart="0"/>',
         '<vehicle id="b" type="car" depart="0"><route edges="hw0 nowhere"/></vehicle>')), (

@@ -142,8 +142,8 @@ def _route_edges(path: Path, route: ET.Element, what: str, net_file: Path) -> tu
     known = read_topology(net_file).edges
     unknown = [edge for edge in edges if edge not in known]
     if unknown:
-        raise FcdError(f"{path}: {what}: edges: expected edges of {Path(net_file).name}, got {shown(unknown[0])} "
-                       "(not in it); is --net the network of this run?")
+        raise FcdError(f"{path}: {what}: edges: expected edges of the network {Path(net_file).name}, got "
+                       f"{shown(unknown[0])} (not in it; a file of a run on another network?)")
     return edges
 
 
