@@ -201,6 +201,19 @@ def _last_line_cells(path: Path) -> int | None:
     return len(next(csv.reader([last]), []))
 
 
+def read_npz(path: Path, what: str) -> dict[str, np.ndarray]:
+    """The arrays of the .npz file ``path``; SumoRssError naming the file where it is not ``what`` (e.g. ``'an
+    episode-state file as sumo-rss writes it'``): not a zip archive at all (numpy would say it holds pickled data and
+    suggest loading it unsafely), or a damaged one."""
+    if path.is_file() and not zipfile.is_zipfile(path):
+        raise SumoRssError(f"{path}: not {what} (not a .npz archive: not a zip file)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise SumoRssError(f"{path}: not {what} ({exc})") from None
+
+
 def _plain(value: object) -> object:
     if isinstance(value, (np.generic, np.ndarray)):
         return value.tolist()

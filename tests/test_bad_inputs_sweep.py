@@ -124,3 +124,13 @@ def test_a_vehicle_on_a_sidewalk_is_named_in_a_warning(tmp_path, capfd, handlers
             "intersection_tls_peds.net.xml; is --net the network of this run?") in err, err
     assert main(audit(TLS_FCD, net=TLS_NET, routes=None)(tmp_path / "own")) == 0
     assert "only pedestrians may use" not in capfd.readouterr().err
+
+
+def test_an_npz_that_is_no_zip_file_says_so(tmp_path):
+    """A text file where episode_states.npz should be: numpy says it 'contains pickled (object) data' and suggests
+    loading it unsafely; the error says what it is not instead."""
+    from sumo_rss.rss.episode_states import EpisodeStates
+
+    with pytest.raises(SumoRssError, match=r"episode_states.npz: not an episode-state file as sumo-rss writes it "
+                                           r"\(not a .npz archive: not a zip file\)$"):
+        EpisodeStates.read(write(tmp_path, "episode_states.npz", "garbage\n"))
