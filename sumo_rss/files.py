@@ -5,6 +5,7 @@ Writing errors (disk full, file too large, a file where a folder must be, not wr
 """
 from __future__ import annotations
 
+import csv
 import errno
 import io
 import json
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import OutputError
+from .errors import OutputError, SumoRssError
 
 CSV_FLOAT_FORMAT = "%.6f"  # every CSV the project writes: 6 decimals, so the same run gives the same bytes
 SANE_MAGNITUDE = 1e10  # no number written into a CSV is larger (positions are at most 1e8 m, times 1e9 s)
@@ -164,6 +165,53 @@ def read_json_object(path: Path) -> dict | None:
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
+
+
+def read_csv_table(path: Path, writer: str, **read_csv: object) -> pd.DataFrame:
+    """The CSV file ``path`` as pandas reads it with the options ``read_csv``; SumoRssError naming the file where it
+    is not a CSV file as ``writer`` (e.g. ``'sumo-rss batch'``) writes it, or where its last row is cut off: pandas
+    would fill the missing cells of a file that a copy or a full disk cut mid-row with empty ones. Every CSV
+    sumo-rss writes ends with a line end; a last line without one (a file edited by hand) is accepted where it has
+    all the header's cells."""
+    try:
+        table = pd.read_csv(path, **read_csv)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SumoRssError(f"{path}: not a CSV file as {writer} writes it ({' '.join(str(exc).split())})") from None
+    cells = _last_line_cells(path)
+    if cells is not None and cells < len(table.columns):
+        raise SumoRssError(f"{path}: line {len(table) + 1}: expected {len(table.columns)} cells (one per column of "
+                           f"the header, as {writer} writes them), got {cells} and no line end: the file is cut off "
+                           "mid-row")
+    return table
+
+
+CSV_TAIL_BYTES = 1 << 16  # read of a CSV's end to find its last line (rows are far shorter)
+
+
+def _last_line_cells(path: Path) -> int | None:
+    """How many cells the last line of the CSV file ``path`` has where it does not end with a line end (None where
+    it does, or the file is empty)."""
+    with open(path, "rb") as source:
+        size = source.seek(0, os.SEEK_END)
+        source.seek(max(0, size - CSV_TAIL_BYTES))
+        tail = source.read()
+    if not tail or tail.endswith((b"\n", b"\r")):
+        return None
+    last = tail.rsplit(b"\n", 1)[-1].decode("utf-8", "replace")
+    return len(next(csv.reader([last]), []))
+
+
+def read_npz(path: Path, what: str) -> dict[str, np.ndarray]:
+    """The arrays of the .npz file ``path``; SumoRssError naming the file where it is not ``what`` (e.g. ``'an
+    episode-state file as sumo-rss writes it'``): not a zip archive at all (numpy would say it holds pickled data and
+    suggest loading it unsafely), or a damaged one."""
+    if path.is_file() and not zipfile.is_zipfile(path):
+        raise SumoRssError(f"{path}: not {what} (not a .npz archive: not a zip file)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise SumoRssError(f"{path}: not {what} ({exc})") from None
 
 
 def _plain(value: object) -> object:

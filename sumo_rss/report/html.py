@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import make_folder, write_file_set
+from ..files import make_folder, read_csv_table, write_file_set
 from .inputs import check_table
 from .later_rules import later_rules_table, rules_on
 from .plots import ego_responsibility_bars, ego_speed, pair_timeline, responsibility_bars, violation_histogram
@@ -118,11 +118,7 @@ def _read(batch_dir: Path, name: str) -> pd.DataFrame:
     """A batch CSV (:func:`read_batch_csv`), checked (:func:`~sumo_rss.report.inputs.check_table`; an absent one is
     an empty table); SumoRssError naming it where it is not one."""
     path = batch_dir / f"{name}.csv"
-    try:
-        table = read_batch_csv(batch_dir, name)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss batch' writes it ({' '.join(str(exc).split())})") \
-            from None
+    table = read_batch_csv(batch_dir, name)
     return table if table.empty and not path.is_file() else check_table(table, path, name)
 
 
@@ -155,11 +151,7 @@ def ego_traces(batch_dir: Path, summary: pd.DataFrame) -> dict[str, pd.DataFrame
 
 def _read_trace(path: Path) -> pd.DataFrame:
     """A run's ego_trace.csv, checked as the batch CSVs are."""
-    try:
-        trace = pd.read_csv(path, keep_default_na=False)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{path}: not a CSV file as 'sumo-rss run' writes it ({' '.join(str(exc).split())})") \
-            from None
+    trace = read_csv_table(path, "'sumo-rss run'", keep_default_na=False)
     return check_table(trace, path, "ego_trace", ["time_s", "speed_ms"])
 
 

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..files import read_csv_table
+
 from ..rss.responsibility import CONSTRAINTS
 from ..rss.signals import SignalConstraint
 from ..sim.snapshot import EGO_CLASS
@@ -27,7 +29,8 @@ def read_batch_csv(batch_dir: Path, name: str) -> pd.DataFrame:
     path = Path(batch_dir) / f"{name}.csv"
     if not path.is_file():
         return pd.DataFrame()
-    return pd.read_csv(path, keep_default_na=False, dtype=dict.fromkeys(TEXT_COLUMNS, str), low_memory=False)
+    return read_csv_table(path, "'sumo-rss batch'", keep_default_na=False, dtype=dict.fromkeys(TEXT_COLUMNS, str),
+                          low_memory=False)
 
 
 def run_label(frame: pd.DataFrame) -> pd.Series:

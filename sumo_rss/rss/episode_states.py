@@ -9,7 +9,6 @@ unless the rows are spooled to disk as they come (:mod:`sumo_rss.spool`; ``sumo-
 from __future__ import annotations
 
 import warnings
-import zipfile
 from dataclasses import dataclass, fields
 from functools import partial
 from pathlib import Path
@@ -18,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import write_npz
+from ..files import read_npz, write_npz
 from ..spool import ColumnSpool, SpooledColumn
 from .responsibility import ResponsibilityTracker
 from .situations import PairSituations
@@ -60,11 +59,12 @@ class EpisodeStates:
     def read(cls, path: Path) -> EpisodeStates:
         """Load what :meth:`write` wrote; SumoRssError naming the file where it is not such a file."""
         names = [f.name for f in fields(cls)]
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                return cls(**{name: data[name] for name in names[:-1]}, cut_at=float(data["cut_at"]))
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-            raise SumoRssError(f"{path}: not an episode-state file as sumo-rss writes it ({exc})") from None
+        what = "an episode-state file as sumo-rss writes it"
+        data = read_npz(path, what)
+        missing = [name for name in names if name not in data]
+        if missing:
+            raise SumoRssError(f"{path}: not {what} (no array {missing[0]!r})")
+        return cls(**{name: data[name] for name in names[:-1]}, cut_at=float(data["cut_at"]))
 
     def rows(self) -> dict[str, tuple[int, int]]:
         """Episode key → (first row, end row)."""

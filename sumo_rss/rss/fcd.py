@@ -30,11 +30,12 @@ from ..sumo_xml import MALFORMED, bytes_consumed, ends_cut, open_output, output_
 from .auditor import AuditResult, Auditor, ParamResolver
 from .params import EvasiveParams
 from .occlusion import OccluderEdges, OcclusionParams
-from .fcd_checks import SIGNALS_FORM, StepValues, check_step
+from .fcd_checks import SIGNALS_FORM, StepValues, check_step, pedestrian_lanes, warn_on_walkways
 from .fcd_parse import FcdParser, FcdStep
-from .fcd_persons import person_snapshot
+from .fcd_persons import check_distinct_ids, check_person_edges, person_snapshot
 from .numbering import Numbering
-from .record_checks import check_collision_record, check_collisions_in_fcd, warn_without_signal_states
+from .record_checks import (check_collision_record, check_collisions_in_fcd, warn_late_signal_states,
+                            warn_without_signal_states)
 from .signals import SignalStates
 from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, PairSituations, against_lane, body_poses
 
@@ -116,17 +117,34 @@ def read_vehicle_info(paths: Path | Sequence[Path] | None, net_file: Path) -> Ve
                        bicycles=frozenset(t for t, p in types.items() if p.vclass == "bicycle"),
                        heights={t: p.height for t, p in types.items()})
     named_routes: dict[str, tuple[str, ...]] = {}
-    for elem in (e for document in documents for e in document.iter()):  # document order: a route before its use
-        if elem.tag == "route" and elem.get("id"):
-            named_routes[elem.get("id", "")] = tuple(elem.get("edges", "").split())
-        elif elem.tag in ("flow", "vehicle"):
-            info.types[elem.get("id", "")] = elem.get("type", "DEFAULT_VEHTYPE")
-            inside = elem.find("route")
-            if inside is not None:
-                info.routes[elem.get("id", "")] = tuple(inside.get("edges", "").split())
-            elif elem.get("route") in named_routes:
-                info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
+    for path, document in zip(files, documents):
+        for elem in document.iter():  # document order: a route before its use
+            if elem.tag == "route" and elem.get("id"):
+                named_routes[elem.get("id", "")] = _route_edges(path, elem, f"<route id={shown(elem.get('id'))}>",
+                                                                net_file)
+            elif elem.tag in ("flow", "vehicle"):
+                info.types[elem.get("id", "")] = elem.get("type", "DEFAULT_VEHTYPE")
+                inside = elem.find("route")
+                if inside is not None:
+                    info.routes[elem.get("id", "")] = _route_edges(
+                        path, inside, f"<{elem.tag} id={shown(elem.get('id', ''))}>: <route>", net_file)
+                elif elem.get("route") in named_routes:
+                    info.routes[elem.get("id", "")] = named_routes[elem.get("route", "")]
     return info
+
+
+def _route_edges(path: Path, route: ET.Element, what: str, net_file: Path) -> tuple[str, ...]:
+    """The edges of a ``<route>`` element (``what`` names it in ``path``); FcdError naming the first edge that is not
+    one of ``net_file``'s (the audit follows each vehicle's route through the network)."""
+    from ..road.topology import read_topology
+
+    edges = tuple(route.get("edges", "").split())
+    known = read_topology(net_file).edges
+    unknown = [edge for edge in edges if edge not in known]
+    if unknown:
+        raise FcdError(f"{path}: {what}: edges: expected edges of the network {Path(net_file).name}, got "
+                       f"{shown(unknown[0])} (not in it; a file of a run on another network?)")
+    return edges
 
 
 def read_collisions(path: Path) -> list[CollisionEvent]:
@@ -224,7 +242,9 @@ class FcdReader:
         self._unknown_types: set[str] = set()  # vTypes warned about
         self._warned_jump = False  # about instantaneous lane changes
         self._warned_containers = False  # about containers, which are not audited
+        self._warned_walkway = False  # about a vehicle on a lane only pedestrians may use
         self.people: set[str] = set()  # ids of the persons and containers in the file so far
+        self._walkers: set[str] = set()  # ids of the persons audited (walking) in the file so far
         self._step: float | None = None  # [s] the file's first step length
         self._warned_step = False  # about unevenly spaced steps
         self.bytes_read = 0  # of the file on disk, up to the last step yielded (progress over its size)
@@ -337,6 +357,10 @@ class FcdReader:
                                                               float(t in self.vehicles.bicycles)) for t in new]])
         return rows
 
+    @functools.cached_property
+    def _walkways(self) -> np.ndarray:
+        return pedestrian_lanes(self.network)
+
     def _time_of(self, step: FcdStep) -> float:
         """A time step's ``time`` [s]; FcdError naming the step before where it is not a number."""
         value = step.time
@@ -351,7 +375,9 @@ class FcdReader:
 
     def _snapshot(self, step: FcdStep, time: float) -> WorldSnapshot:
         if self._prev_time is not None and not time > self._prev_time:
-            raise FcdError(f"{self.path}: time step {time} s does not follow {self._prev_time} s")
+            what = "is repeated" if time == self._prev_time else f"comes after {self._prev_time} s"
+            raise FcdError(f"{self.path}: time step {time} s {what}: time: expected a time after the step before's "
+                           "(SUMO writes every step once, in time order; docs/outputs.md)")
         where = f"{self.path}, time step {time} s"
         self.people.update(step.unaudited)
         if step.unaudited and not self._warned_containers:
@@ -363,22 +389,31 @@ class FcdReader:
         except ValueError as exc:
             raise FcdError(str(exc)) from None
         if persons is not None:
+            check_person_edges(where, persons, self.network)
             self.people.update(persons.ids.tolist())
+            self._walkers.update(persons.ids.tolist())
         if len(step) and not (step.has("id") and step.has("lane")):
             vid, name = next((r.get("id", "?"), name) for r in step.rows() for name in ("id", "lane") if name not in r)
             raise FcdError(f"{where}: vehicle {shown(vid)} lacks the attribute {name!r} ({NEEDED_ATTRIBUTES})")
-        id_column = step.column("id")
+        id_column, lane_column = step.column("id"), step.column("lane")
+        if "" in id_column or "" in lane_column:
+            name, column = ("id", id_column) if "" in id_column else ("lane", lane_column)
+            k = list(column).index("")
+            raise FcdError(f"{where}: vehicle {shown(id_column[k] or '?')} (vehicle {k + 1} of the step): {name}: "
+                           f"expected SUMO's {'vehicle' if name == 'id' else 'lane'} id, got ''")
         ids = np.array(id_column, dtype=str)
-        lane_id = np.array(step.column("lane"), dtype=str)
+        lane_id = np.array(lane_column, dtype=str)
         if len(set(id_column)) < len(ids):
             twice = next(v for v, count in Counter(id_column).items() if count > 1)
             raise FcdError(f"{where}: vehicle {shown(twice)} is listed more than once")
         x, y, angle, speed = (_numbers(step, name, where) for name in ("x", "y", "angle", "speed"))
-        lane = np.fromiter(map(self._lane_index.get, step.column("lane"), itertools.repeat(-1)), int, len(step))
+        lane = np.fromiter(map(self._lane_index.get, lane_column, itertools.repeat(-1)), int, len(step))
         if np.any(lane < 0):
             missing = sorted(set(lane_id[lane < 0].tolist()))
             raise FcdError(f"{where}: lanes not in {self.network.path.name}: {listed(missing)}; is --net the network "
                            "of this run?")
+        if not self._warned_walkway:
+            self._warned_walkway = warn_on_walkways(where, ids, lane, self.network, self._walkways)
         # Without 'type' in the FCD, the route files' vehicles and flows tell it.
         types = step.column("type")
         if None in types or "" in types:
@@ -422,7 +457,9 @@ class FcdReader:
         dt = time - self._prev_time if self._prev_time is not None else None
         if dt is not None:
             self._check_step(dt, time)
+        known = len(self._numbers)
         number = self._numbers.of(id_column)
+        check_distinct_ids(where, ids[number >= known], self._walkers, persons, self._numbers.number)
         seen, prev = self._prev.of(number)
         prev_speed, prev_edge, prev_lane, prev_lat_pos, prev_edge_lat, prev_lat_speed = prev.T
         same_edge = seen & (prev_edge == edge)
@@ -515,6 +552,8 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     steps = 0
     unseen = reports.parties() if reports is not None else np.zeros(0, dtype=str)  # not in the FCD's steps so far
     for steps, snapshot in enumerate(reader, start=1):
+        if steps == 1:
+            warn_late_signal_states(signals, fcd, snapshot.time)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent:
             absent.difference_update(snapshot.ids.tolist())

@@ -8,6 +8,7 @@ real run: they only keep absurd numbers out of the audit and its CSVs.
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -52,9 +53,9 @@ def check_step(where: str, time: float, previous_time: float | None, step: StepV
     ``from_centre_line()``: [m] how far each front bumper is from its lane's centre line (its nearest point), where
     the caller projects them anyway (asked once the numbers are checked); else worked out here."""
     if not abs(time) <= MAX_TIME_S:
-        raise _error(f"{where}: time: expected at most {MAX_TIME_S:g} s, got {time:g}")
+        raise fcd_error(f"{where}: time: expected at most {MAX_TIME_S:g} s, got {time:g}")
     if previous_time is not None and time - previous_time < MIN_STEP_S - 1e-9:
-        raise _error(f"{where}: time: expected at least {MIN_STEP_S:g} s after the time step before "
+        raise fcd_error(f"{where}: time: expected at least {MIN_STEP_S:g} s after the time step before "
                      f"({previous_time:g} s; SUMO's shortest step), got {time:g}")
     bounds = [("x", step.x, MAX_COORDINATE_M, "m"), ("y", step.y, MAX_COORDINATE_M, "m"),
               ("angle", step.angle, MAX_ANGLE_DEG, "degrees"), ("acceleration", step.accel, MAX_ACCEL, "m/s²"),
@@ -82,7 +83,7 @@ def check_step(where: str, time: float, previous_time: float | None, step: StepV
     bad = np.flatnonzero(beyond > OFF_LANE_M)
     if bad.size:
         k = int(bad[0])
-        raise _error(f"{where}: vehicle {shown(str(step.ids[k]))}: x, y: expected a position on its lane "
+        raise fcd_error(f"{where}: vehicle {shown(str(step.ids[k]))}: x, y: expected a position on its lane "
                      f"{shown(str(network.lane_ids[lane[k]]))} (at most {OFF_LANE_M:g} m beyond its edge), got "
                      f"({step.x[k]:.6g}, {step.y[k]:.6g}), {beyond[k]:.6g} m beyond it; is --net the network of "
                      "this run?")
@@ -93,10 +94,10 @@ def _refuse(where: str, ids: np.ndarray, name: str, values: np.ndarray, fine: np
     bad = np.flatnonzero(~fine)
     if bad.size:
         k = int(bad[0])
-        raise _error(f"{where}: vehicle {shown(str(ids[k]))}: {name}: expected {expected}, got {values[k]:.6g}")
+        raise fcd_error(f"{where}: vehicle {shown(str(ids[k]))}: {name}: expected {expected}, got {values[k]:.6g}")
 
 
-def _error(message: str) -> SumoRssError:
+def fcd_error(message: str) -> SumoRssError:
     from .fcd import FcdError  # the reader's error (this module is its helper)
 
     return FcdError(message)
@@ -118,3 +119,30 @@ def _from_centre_line(network: RoadNetwork, step: StepValues, half_width: np.nda
     if far.size:
         distance[far] = np.abs(network.frenet(lane[far], step.x[far], step.y[far])[1])
     return distance
+
+
+def pedestrian_lanes(network: RoadNetwork) -> np.ndarray:
+    """[lanes] whether only pedestrians may use each lane of ``network`` (a sidewalk, crossing or walking area), as
+    its ``allow`` says."""
+    from ..road.topology import read_topology
+
+    lanes = read_topology(network.path).lanes
+    permissions = [lanes.get(edge, ())[index] if index < len(lanes.get(edge, ())) else None for edge, index in
+                   zip(network.edge_ids[network.lane_edge].tolist(), network.lane_index.tolist())]
+    return np.array([p is not None and p.allow is not None and p.allow <= {"pedestrian"} for p in permissions],
+                    dtype=bool)
+
+
+def warn_on_walkways(where: str, ids: np.ndarray, lane: np.ndarray, network: RoadNetwork, walkways: np.ndarray
+                     ) -> bool:
+    """Warn about the first vehicle on a lane only pedestrians may use (``walkways``: :func:`pedestrian_lanes`):
+    SUMO puts none there (an FCD of a network without sidewalks audited on one with them, whose lane ids it shares),
+    unless a program placed it there ignoring the lane's permissions (TraCI moveToXY), so it is no error. Whether it
+    warned."""
+    on = np.flatnonzero(walkways[lane])
+    if on.size:
+        k = int(on[0])
+        warnings.warn(f"{where}: vehicle {shown(str(ids[k]))} is on lane {shown(str(network.lane_ids[lane[k]]))}, "
+                      f"which only pedestrians may use in {network.path.name}; is --net the network of this run?",
+                      stacklevel=5)
+    return bool(on.size)

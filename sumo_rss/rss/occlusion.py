@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import SumoRssError
+from ..errors import SumoRssError, shown
+from ..road.net_check import MAX_COORDINATE_M
 from ..road.link_pairs import expand_ranges
 from ..sim.snapshot import WorldSnapshot
 
@@ -211,8 +212,8 @@ def read_occluders(paths: Sequence[Path], type_prefix: str = OCCLUDER_TYPE_PREFI
                                     for point in poly.get("shape", "").split()], dtype=float)
             except ValueError:
                 corners = np.zeros((0, 2))
-            if corners.ndim != 2 or len(corners) < 3 or not np.isfinite(corners).all():
-                raise SumoRssError(f"{where}: shape: expected three or more points 'x,y x,y x,y' [m], got "
-                                   f"{poly.get('shape', '')!r}")
+            if corners.ndim != 2 or len(corners) < 3 or not (np.abs(corners) <= MAX_COORDINATE_M).all():
+                raise SumoRssError(f"{where}: shape: expected three or more points 'x,y x,y x,y' [m] within "
+                                   f"{MAX_COORDINATE_M:g} m of the origin, got {shown(poly.get('shape', ''))}")
             polygons.append(corners)
     return OccluderEdges.from_polygons(polygons)

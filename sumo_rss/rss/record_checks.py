@@ -7,11 +7,15 @@ import math
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..errors import SumoRssError, shown
+from ..errors import SumoRssError, cut, shown
 from ..road.net_check import SIGNAL_STATE_CHARACTERS
 from ..road.topology import read_topology
 from ..sim.collisions import CollisionEvent
+
+if TYPE_CHECKING:  # signals.py imports this module
+    from .signals import SignalStates
 
 
 def signal_state(path: Path, number: int, elem: ET.Element, links: dict[str, int],
@@ -57,6 +61,18 @@ def warn_without_signal_states(net_file: Path) -> None:
             "A run whose signals ran other programs (from its additional files, actuated, switched by TraCI) gets "
             "red-light violations and priorities that SUMO never showed; give the run's signal states "
             "(SaveTLSStates, docs/rss.md)", stacklevel=3)
+
+
+def warn_late_signal_states(signals: SignalStates, fcd: Path, first_time: float) -> None:
+    """The warning of an offline audit whose signal-state file begins some signal's states after the FCD's first
+    time step ``first_time`` [s] (files of different runs, or a SaveTLSStates output begun late)."""
+    late = signals.begin_after(first_time)
+    if late:
+        first = ", ".join(f"{cut(tl)} at {time:g} s" for tl, time in list(late.items())[:3])
+        warnings.warn(f"{signals.saved_states}: the states of signal(s) {first}{', ...' if len(late) > 3 else ''} "
+                      f"begin after the first time step of {fcd} ({first_time:g} s): until then the links of those "
+                      "signals are audited as of equal priority, without the signal rule; is it the signal-state "
+                      "file of this run?", stacklevel=3)
 
 
 def check_collision_record(report: CollisionEvent, record: str) -> None:

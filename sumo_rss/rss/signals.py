@@ -227,6 +227,11 @@ class SignalStates:
         if cut:
             self.known_until = max((times[-1] for times, _ in self._saved.values()), default=0.0)
 
+    def begin_after(self, time: float) -> dict[str, float]:
+        """The signals whose saved states begin after ``time`` [s] (signal → its first state's time [s]): before
+        that no state of theirs is known, and their links are audited as unsignalised ones of equal priority."""
+        return {tl: times[0] for tl, (times, _) in self._saved.items() if times and times[0] > time + 1e-6}
+
     def states(self, time: float) -> dict[str, str] | None:
         out = {}
         for tl, (times, states) in self._saved.items():

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import SumoRssError
-from ..files import read_json_object
+from ..files import read_csv_table, read_json_object
 from ..rss.episode_states import STATE_FILE, EpisodeStates
 from .blob import Blob
 from .network import LANE_KINDS, NetGeometry
@@ -37,10 +37,7 @@ def read_table(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     """A CSV of the audit as text cells; SumoRssError naming the file and the missing columns."""
     if not path.is_file():
         raise SumoRssError(f"{path}: not found (a folder of 'sumo-rss run', 'batch' or 'audit' has it)")
-    try:
-        table = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise SumoRssError(f"{path}: not a CSV file as sumo-rss writes it ({exc})") from None
+    table = read_csv_table(path, "sumo-rss", dtype=str, keep_default_na=False)
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise SumoRssError(f"{path}: expected the columns {', '.join(columns)}, missing {', '.join(missing)}")

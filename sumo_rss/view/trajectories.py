@@ -10,7 +10,6 @@ Pure numpy: recorded from anything shaped like a ``WorldSnapshot`` (this package
 """
 from __future__ import annotations
 
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -18,7 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import SumoRssError
-from ..files import write_npz
+from ..files import read_npz, write_npz
 from ..spool import ColumnSpool
 
 TRAJECTORY_FILE = "trajectories.npz"
@@ -73,11 +72,7 @@ class Trajectories:
     @classmethod
     def read(cls, path: Path) -> Trajectories:
         """Load ``path``; SumoRssError naming the file and what is wrong where it is not a trajectory file."""
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                arrays = {name: data[name] for name in data.files}
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
-            raise SumoRssError(f"{path}: not a trajectory file as 'sumo-rss run' writes it ({exc})") from None
+        arrays = read_npz(path, "a trajectory file as 'sumo-rss run' writes it")
         version = int(arrays.pop("format_version", -1))
         if version != FORMAT_VERSION:
             raise SumoRssError(f"{path}: format_version: expected {FORMAT_VERSION}, got {version} (written by another "
