@@ -192,3 +192,20 @@ def test_entries_are_each_vehicles_links_and_those_further_along_its_route(fragm
         assert all(np.array_equal(x, y) for x, y in zip(found, (rows, links, pos)))
         if levels:
             assert len(rows) > len(junction_entries(lane, lane_pos, next_edge, network, junctions, horizon)[0]) + 50
+
+
+def test_next_route_edge_is_the_edge_after_the_first_occurrence_on_the_route():
+    # Routes of 6 edges drawn from 8 (repeats: a route may pass an edge twice), -1 padded; the current edge on the
+    # route, twice on it, last on it, not on it, and a route unknown.
+    rng = np.random.default_rng(3)
+    routes = rng.integers(0, 8, (200, 6))
+    routes[rng.random(200) < 0.1] = -1
+    routes[:, 4:][rng.random((200, 2)) < 0.3] = -1
+    edge = rng.integers(0, 8, 200)
+    want = []
+    for route, e in zip(routes.tolist(), edge.tolist()):
+        at = route[:-1].index(e) if e in route[:-1] else -1
+        want.append(route[at + 1] if at >= 0 else -1)
+    assert next_route_edge(routes, edge).tolist() == want
+    assert {-1, 0}.issubset(set(want)) and len(set(want)) > 5
+    assert next_route_edge(np.full((3, 1), 4), np.array([4, 4, 1])).tolist() == [-1, -1, -1]  # one edge: no next

@@ -86,3 +86,37 @@ def test_the_models_hold_nothing_that_grows_with_the_square_of_the_network(city)
     # A dense table of link pairs would be links² entries: the junction blocks are far fewer.
     assert junctions.area_index.values.size < 0.05 * links ** 2
     assert junctions.area_index.shape == (links, links)
+
+
+def _joined_offset_reference(net: RoadNetwork, lane: int, ref: int) -> float:
+    """The rule of ``situations._joined_offset`` for one lane pair, stated lane by lane: of the lanes ``lane`` leads on
+    to (``downstream_lanes``, in lane order) on ``ref``'s edge, the offset from ``ref`` of the first nearest."""
+    best = np.nan
+    for reached in net.downstream_lanes(lane).tolist():
+        if net.lane_edge[reached] == net.lane_edge[ref]:
+            offset = net.lane_offset[reached] - net.lane_offset[ref]
+            if np.isnan(best) or abs(offset) < abs(best):
+                best = offset
+    return best
+
+
+def test_city_joined_offsets_are_those_of_the_lane_by_lane_rule(city):
+    from sumo_rss.rss.situations import _joined_offset
+
+    net = city
+    net.require_reach(120.0)
+    rng = np.random.default_rng(11)
+    lanes = rng.choice(len(net.lane_ids), 300)
+    # The reference lanes: mostly lanes these lead on to (a lane of their edge, beside it), some anywhere.
+    refs = []
+    for lane in lanes.tolist():
+        reached = net.downstream_lanes(lane)
+        edge = net.lane_edge[int(rng.choice(reached))]
+        on_edge = np.flatnonzero(net.lane_edge == edge)
+        refs.append(int(rng.choice(on_edge)) if rng.random() < 0.8 else int(rng.integers(len(net.lane_ids))))
+    refs = np.array(refs)
+    found = _joined_offset(net, lanes, refs)
+    want = np.array([_joined_offset_reference(net, a, b) for a, b in zip(lanes.tolist(), refs.tolist())])
+    assert np.array_equal(found, want, equal_nan=True)
+    assert 100 < np.isfinite(want).sum() < len(want)  # both answers are asked
+    assert (np.abs(want[np.isfinite(want)]) > 0).any()  # and lanes beside the reference lane

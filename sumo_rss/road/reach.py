@@ -12,10 +12,24 @@ from __future__ import annotations
 import heapq
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 HORIZON_STEP_M = 50.0  # [m] a horizon that must grow grows to a multiple of this, a quarter beyond what is asked
+
+
+class ReachRows(NamedTuple):
+    """The searches kept by a :class:`GraphReach`, laid end to end: source ``s``'s row is ``nodes`` (sorted) and
+    ``distances`` [m] from ``start[s]`` (-1: not searched), ``count[s]`` long; what lies within ``length[s] + within``
+    [m] of the source's start is what the look-ups see."""
+
+    start: np.ndarray
+    count: np.ndarray
+    nodes: np.ndarray
+    distances: np.ndarray
+    length: np.ndarray
+    within: float
 
 
 class GraphReach:
@@ -31,12 +45,26 @@ class GraphReach:
         self._length = self._lengths.tolist()  # Python floats: the search adds them one by one
         self.horizon = 0.0  # [m] how far the kept searches reach
         self.within = 0.0  # [m] how far the look-ups reach (the current step's)
-        self._rows: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._clear()
+
+    def _clear(self) -> None:
+        """Forget every search. The searches kept are rows of one store laid end to end (``_nodes``, sorted per
+        row, and ``_distances``, filled up to ``_used``; grown by doubling): source ``s``'s row starts at
+        ``_start[s]`` (-1: not searched) and is ``_count[s]`` long."""
+        self._start = np.full(len(self._length), -1, dtype=np.int64)
+        self._count = np.zeros(len(self._length), dtype=np.int64)
+        self._nodes = np.zeros(0, dtype=np.int64)
+        self._distances = np.zeros(0)
+        self._used = 0
 
     def __getstate__(self) -> dict:
         """Pickled without what was searched (a cached road model starts afresh)."""
         return {"_successors": self._successors, "_lengths": self._lengths, "_length": self._length, "horizon": 0.0,
-                "within": 0.0, "_rows": {}}
+                "within": 0.0}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._clear()
 
     def require(self, horizon: float) -> None:
         """Make the look-ups reach ``horizon`` [m] beyond the source's end, searching farther if the kept searches
@@ -44,7 +72,7 @@ class GraphReach:
         self.within = horizon
         if horizon > self.horizon:
             self.horizon = math.ceil(1.25 * horizon / HORIZON_STEP_M) * HORIZON_STEP_M
-            self._rows = {}
+            self._clear()
 
     def row(self, source: int) -> tuple[np.ndarray, np.ndarray]:
         """(nodes reached from ``source`` within the look-ups' reach, sorted; their distances [m])."""
@@ -54,35 +82,46 @@ class GraphReach:
 
     def _searched(self, source: int) -> tuple[np.ndarray, np.ndarray]:
         """(nodes reached from ``source`` within the horizon, sorted; their distances [m])."""
-        found = self._rows.get(source)
-        if found is None:
-            found = self._rows[source] = self._search(source)
-        return found
+        if self._start[source] < 0:
+            self._search_missing(np.array([source], dtype=np.int64))
+        start, stop = self._start[source], self._start[source] + self._count[source]
+        return self._nodes[start:stop], self._distances[start:stop]
+
+    def _search_missing(self, source: np.ndarray) -> None:
+        """Search from every node of ``source`` not searched yet, and keep the rows in the store."""
+        missing = source[self._start[source] < 0]
+        if not missing.size:
+            return
+        missing = np.unique(missing).tolist()
+        rows = [self._search(s) for s in missing]
+        size = self._used + sum(len(nodes) for nodes, _ in rows)
+        if size > len(self._nodes):
+            capacity = max(size, 2 * len(self._nodes), 1024)
+            self._nodes = np.concatenate([self._nodes[:self._used], np.zeros(capacity - self._used, np.int64)])
+            self._distances = np.concatenate([self._distances[:self._used], np.zeros(capacity - self._used)])
+        for s, (nodes, distances) in zip(missing, rows):
+            self._start[s], self._count[s] = self._used, len(nodes)
+            self._nodes[self._used:self._used + len(nodes)] = nodes
+            self._distances[self._used:self._used + len(nodes)] = distances
+            self._used += len(nodes)
+
+    def rows(self, source: np.ndarray) -> ReachRows:
+        """The kept searches, with those of every node of ``source`` (int64) searched where not yet: what the
+        compiled look-ups (:mod:`.reach_kernel`) read."""
+        self._search_missing(source)
+        return ReachRows(self._start, self._count, self._nodes, self._distances, self._lengths, float(self.within))
 
     def between(self, source: np.ndarray, target: np.ndarray) -> np.ndarray:
         """[m] distance from each ``source`` node to each ``target`` node (index arrays of one length); inf where
-        the target is not reached within the look-ups' reach."""
+        the target is not reached within the look-ups' reach (:func:`.reach_kernel.distances_between`)."""
+        from .reach_kernel import distances_between  # numba: compiled at the first look-up
+
         source = np.asarray(source, dtype=np.int64)
         target = np.asarray(target, dtype=np.int64)
-        out = np.full(source.shape, np.inf)
         if not source.size:
-            return out
-        sources, inverse = distinct_nodes(source, len(self._length))
-        rows = [self._searched(s) for s in sources.tolist()]
-        nodes = np.concatenate([r[0] for r in rows])
-        distances = np.concatenate([r[1] for r in rows])
-        # One sorted key per (row, reached node): row number * n + node.
-        n = len(self._length)
-        keys = nodes + n * np.repeat(np.arange(len(rows), dtype=np.int64), [len(r[0]) for r in rows])
-        wanted = inverse.reshape(source.shape) * n + target
-        if not keys.size:
-            return out
-        pos = np.minimum(np.searchsorted(keys, wanted), keys.size - 1)
-        hit = keys[pos] == wanted
-        limit = self._lengths[source] + self.within
-        hit &= distances[pos] <= limit
-        out[hit] = distances[pos[hit]]
-        return out
+            return np.full(source.shape, np.inf)
+        flat = source.reshape(-1)
+        return distances_between(flat, target.reshape(-1), *self.rows(flat)).reshape(source.shape)
 
     def _search(self, source: int) -> tuple[np.ndarray, np.ndarray]:
         length, successors = self._length, self._successors
@@ -105,12 +144,3 @@ class GraphReach:
         order = np.argsort(nodes)
         return nodes[order], np.fromiter(reached.values(), dtype=float, count=len(reached))[order]
 
-
-def distinct_nodes(nodes: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """(the distinct ``nodes`` sorted, the index of each node among them): ``np.unique(nodes, return_inverse=True)``
-    through a table of the ``count`` nodes of the graph, in time linear in both (a step asks about ~60,000 pairs of a
-    few edges: sorting them took 2.9 ms, the table 0.1 ms)."""
-    present = np.zeros(count, dtype=bool)
-    present[nodes] = True
-    number = np.cumsum(present) - 1
-    return np.flatnonzero(present), number[nodes]

@@ -200,7 +200,7 @@ class Auditor:
                                               on_close=self._close_episode)
         self._uids = Numbering()  # every road user seen: its number in the pair keys
         self._routes = RouteTable(network)
-        self._prev_ids: set[str] = set()
+        self._prev_uids = np.zeros(0, dtype=np.int64)  # the road users' numbers at the step before
         self._collisions: list[dict] = []
 
     def observe(self, snapshot: WorldSnapshot, collisions: Iterable[CollisionInput] = ()) -> PairSituations:
@@ -244,7 +244,9 @@ class Auditor:
             area_number = np.concatenate([np.full(len(road), -1), number[first]])
         else:
             situations, keys = road, road_keys
-        new_vehicle = np.array([v not in self._prev_ids for v in ids], dtype=bool)
+        seen_before = np.zeros(len(self._uids), dtype=bool)
+        seen_before[self._prev_uids] = True
+        new_vehicle = ~seen_before[uid]
         vehicle_pairs, vehicle_keys = situations, keys
         if walking is not None:  # rows of snapshot only: rules 4 and 5 are asked of vehicles, and callers read them
             cars = (situations.a < users.vehicles) & (situations.b < users.vehicles)
@@ -264,7 +266,7 @@ class Auditor:
         if self._signal_rule is not None:
             self._signal_rule.step(snapshot, frame)
         self.record_collisions(collisions)
-        self._prev_ids = set(ids)
+        self._prev_uids = uid
         self.pair_steps += len(situations)
         return vehicle_pairs
 
@@ -328,7 +330,7 @@ def _area_rules(keys: np.ndarray, number: np.ndarray, crossing: PairSituations, 
     area_keys = np.empty(len(keys), dtype=AREA_KEY)
     area_keys["pair"], area_keys["area"] = keys, number
     order = np.lexsort((margin, ~crossing.dangerous, number, keys))
-    ordered = area_keys[order]
-    first = order[np.r_[True, ordered[1:] != ordered[:-1]]]
+    pair, area = keys[order], number[order]  # compared field by field (numpy's structured != is ~10x slower)
+    first = order[np.r_[True, (pair[1:] != pair[:-1]) | (area[1:] != area[:-1])]]
     return AreaRules(area_keys[first], crossing.safe_rules[first], crossing.priority[first],
                      crossing.kind[first] == KIND_SIGNAL)

@@ -550,15 +550,16 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
-    unseen = reports.parties() if reports is not None else np.zeros(0, dtype=str)  # not in the FCD's steps so far
+    # Not in the FCD's steps so far (a set: np.isin sorted every step's ids, ~3 % of acosta's audit).
+    unseen = set(reports.parties().tolist()) if reports is not None else set()
     for steps, snapshot in enumerate(reader, start=1):
         if steps == 1:
             warn_late_signal_states(signals, fcd, snapshot.time)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
-        if absent:
-            absent.difference_update(snapshot.ids.tolist())
-        if unseen.size:
-            unseen = unseen[~np.isin(unseen, snapshot.ids)]
+        if absent or unseen:
+            ids = snapshot.ids.tolist()
+            absent.difference_update(ids)
+            unseen.difference_update(ids)
         if reports is not None:
             auditor.observe(snapshot, contacts.step(reports.take_until(snapshot.time)))
         else:
@@ -578,7 +579,7 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
                       f"steps of {fcd} after it (to {snapshot.time:g} s) were audited with the states at "
                       f"{signals.known_until:g} s", stacklevel=2)
     if reports is not None:
-        check_collisions_in_fcd(collisions, fcd, reports.audited(), set(unseen.tolist()) - reader.people)
+        check_collisions_in_fcd(collisions, fcd, reports.audited(), unseen - reader.people)
         reports.warn_unused(collisions, fcd)
     if absent:
         warnings.warn(f"{fcd}: no vehicle {listed(sorted(absent))} (given as the ego): audited without it",

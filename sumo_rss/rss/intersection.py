@@ -130,13 +130,11 @@ def _side_by_side(*groups: tuple[Any, ...]) -> list[np.ndarray]:
 
 
 def next_route_edge(route_edges: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """The route edge after each vehicle's current edge, -1 where unknown (no route, or not on it)."""
-    if route_edges.shape[1] < 2:
-        return np.full(len(edge), -1, dtype=int)
-    match = route_edges[:, :-1] == edge[:, None]
-    has = match.any(axis=1)
-    idx = match.argmax(axis=1)
-    return np.where(has, route_edges[np.arange(len(edge)), idx + 1], -1)
+    """The route edge after each vehicle's current edge (``route_edges``: [n, k] the remaining routes, -1 padded),
+    -1 where unknown (no route, or not on it); compiled (:func:`.junction_kernel.next_route_edges`)."""
+    from .junction_kernel import next_route_edges  # numba: only where junctions are
+
+    return next_route_edges(np.asarray(route_edges, dtype=np.int64), np.asarray(edge, dtype=np.int64))
 
 
 def area_distances(junctions: JunctionModel, link: Any, foe: Any, pos: Any, length: Any

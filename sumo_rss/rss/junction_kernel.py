@@ -90,6 +90,17 @@ def _next_on_route(route_edges, row, edge):
 
 
 @kernel
+def next_route_edges(route_edges, edge):
+    """[n] the edge after ``edge[i]`` on row i's remaining route (its first occurrence), -1 where unknown: what
+    :func:`~.intersection.next_route_edge` gives (numpy's [n, route length] comparison and argmax: ~0.1 ms a step
+    for a city's 450 cars)."""
+    out = np.empty(edge.size, dtype=np.int64)
+    for i in range(edge.size):
+        out[i] = _next_on_route(route_edges, i, edge[i])
+    return out
+
+
+@kernel
 def _grown(values, size):
     """``values`` copied into a longer array of ``size`` (the rest uninitialised)."""
     out = np.empty(size, dtype=values.dtype)

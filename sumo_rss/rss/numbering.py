@@ -2,6 +2,7 @@
 look-ups work on integers instead of strings."""
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,9 +20,9 @@ class Numbering:
     def of(self, names: Sequence[str]) -> np.ndarray:
         """[n] int64: the number of each of ``names`` (Python strings: faster to hash than numpy's, one by one);
         names not seen before are numbered in their order here."""
-        numbers = list(map(self.number.get, names))
-        if None in numbers:
+        numbers = np.fromiter(map(self.number.get, names, itertools.repeat(-1)), dtype=np.int64, count=len(names))
+        if (numbers < 0).any():
             for name in names:
                 self.number.setdefault(name, len(self.number))
-            numbers = list(map(self.number.__getitem__, names))
-        return np.array(numbers, dtype=np.int64)
+            numbers = np.fromiter(map(self.number.__getitem__, names), dtype=np.int64, count=len(names))
+        return numbers

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import SumoRssError
 from ..files import read_npz, write_npz
+from ..rss.numbering import Numbering
 from ..spool import ColumnSpool
 
 TRAJECTORY_FILE = "trajectories.npz"
@@ -102,7 +103,7 @@ class TrajectoryRecorder:
     def __init__(self, net_file: Path, near_ego_m: float | None = None, spool: Path | None = None):
         self.net_file = str(Path(net_file).resolve())
         self.near_ego_m = near_ego_m
-        self._index: dict[str, int] = {}
+        self._numbers = Numbering()  # every vehicle recorded: its number (its row of the per-vehicle lists)
         self._length: list[float] = []
         self._width: list[float] = []
         self._vclass: list[str] = []
@@ -119,17 +120,16 @@ class TrajectoryRecorder:
         """Record one step."""
         rows = self._rows(snapshot)
         ids = snapshot.ids[rows].tolist()
-        index = self._index
-        for i, vid in zip(rows.tolist(), ids):
-            if vid not in index:
-                index[vid] = len(index)
-                self._length.append(float(snapshot.length[i]))
-                self._width.append(float(snapshot.width[i]))
-                self._vclass.append(str(snapshot.vclass[i]))
-                self._vtype.append(str(snapshot.vtype[i]))
+        known = len(self._numbers)
+        numbers = self._numbers.of(ids)
+        for i in rows[numbers >= known].tolist():  # first seen now, in the order numbered
+            self._length.append(float(snapshot.length[i]))
+            self._width.append(float(snapshot.width[i]))
+            self._vclass.append(str(snapshot.vclass[i]))
+            self._vtype.append(str(snapshot.vtype[i]))
         self._times.append(float(snapshot.time))
         self._counts.append(len(ids))
-        self._rows_of_steps.append(vehicle=np.fromiter((index[v] for v in ids), dtype=np.int32, count=len(ids)),
+        self._rows_of_steps.append(vehicle=numbers.astype(np.int32),
                                    **{name: np.asarray(getattr(snapshot, name))[rows]
                                       for name in ("x", "y", "heading", "speed")})
         for signal, state in (snapshot.tls_states or {}).items():
@@ -161,7 +161,7 @@ class TrajectoryRecorder:
             "time": np.array(self._times, dtype=np.float64),
             "step_start": np.concatenate([[0], np.cumsum(self._counts, dtype=np.int64)]).astype(np.int64),
             **{name: column(name) for name in ("vehicle", "x", "y", "heading", "speed")},
-            "ids": np.array(list(self._index), dtype=str), "length": np.array(self._length, dtype=np.float32),
+            "ids": np.array(list(self._numbers.number), dtype=str), "length": np.array(self._length, dtype=np.float32),
             "width": np.array(self._width, dtype=np.float32), "vclass": np.array(self._vclass, dtype=str),
             "vtype": np.array(self._vtype, dtype=str),
             "signal_ids": np.array(list(self._signal_ids), dtype=str),
