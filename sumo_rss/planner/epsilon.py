@@ -166,7 +166,7 @@ class EpsilonPlanner:
         # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
         # (else it creeps up in pulses, each a new danger episode).
         ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
-        params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
+        params = _ego_moving(params, ego_moving)
         v_road = _reference_speed(frame, vehicles, v_ego, cfg.desired_speed)
         s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
         # A mandatory change that the barrier held in the cycle before seeks its gap: it aims at the gap it reaches
@@ -291,8 +291,7 @@ class EpsilonPlanner:
         (:func:`.gap_aim.aim_at_gap`)."""
         wide = key_vehicles(snapshot, ego, frame, np.full(len(snapshot.ids), AIM_REAR_REACH))
         vehicles, params = self._vehicles(snapshot, ego, frame, wide, all_params)
-        return vehicles, replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max,
-                                                                       params.lon_accel_max[1:]]))
+        return vehicles, _ego_moving(params, ego_moving)
 
     @staticmethod
     def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
@@ -444,6 +443,11 @@ def _speed_reach(v: float) -> float:
 
 def _target(lat: Lat) -> int:
     return TARGET_CHAIN[lat]
+
+
+def _ego_moving(params: RssParamArrays, ego_moving: RssParamArrays) -> RssParamArrays:
+    """``params`` (row 0 the ego's) with the ego's a_acc as while moving (``ego_moving``, one row)."""
+    return replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
 
 
 def _row(params: RssParamArrays, i: int):

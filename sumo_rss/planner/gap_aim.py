@@ -11,7 +11,7 @@ v_ego) behind it and the ego at least d_min(v_ego, v_front) behind the gap's fro
 later (the virtual barrier's test, :func:`.behavior.lane_change.lane_change_command`), with its front bumper still
 able to stop at its comfortable braking short of the lane end's waiting margin (the forward simulation's IDM
 holds it to that). The aim is the profile whose first legal time is earliest (ties: the speed
-nearest the ego's)). Vectorised over [speeds, times, gaps]. Units: m, s, m/s, m/s².
+nearest the ego's). Vectorised over [speeds, times, gaps]. Units: m, s, m/s, m/s².
 """
 from __future__ import annotations
 
