@@ -59,18 +59,6 @@ def test_smoke_a_held_mandatory_change_seeks_its_gap_and_the_ego_takes_the_exit(
 
 
 @pytest.mark.slow
-def test_smoke_a_held_mandatory_change_aims_at_a_gap_and_the_ego_takes_the_exit_sooner(tmp_path):
-    """highway_exit seed 2, 100 s: the held changes right aim at the gap they reach soonest RSS-legal
-    (gap_aim.aim_at_gap) and the ego is on the ramp at 94.2 s; seeking only SEEK_SLOWER below the target lane's
-    nearest cars it stood at the end of the deceleration lane and reached the ramp at 134.1 s (docs/planner.md,
-    "merge_onramp: aiming at a gap")."""
-    runs = batch("highway_exit", tmp_path / "exit", range(2, 3), duration=100.0)
-    summary = assert_safe(runs)[0]
-    assert summary["planner"]["gap_seek_cycles"] > 0
-    assert any(r["lane_id"].startswith("ex_ramp_") for r in trace(runs[0][1]))
-
-
-@pytest.mark.slow
 def test_smoke_motion_layer_drives_more_smoothly_than_the_behaviour_trajectory(tmp_path):
     """Issue 6: the same seeds with and without SSC; the executed motion's mean RMS jerk is lower with it
     (measured on merge_onramp, 60 s: seed 1 0.29 against 1.88 m/s³; seed 0, where the behaviour trajectory is

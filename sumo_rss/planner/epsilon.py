@@ -39,7 +39,6 @@ from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import Crossing, stop_line
 from . import navigation
-from .gap_aim import AIM_REAR_REACH
 from .frames import PlanningFrames
 from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
@@ -162,20 +161,11 @@ class EpsilonPlanner:
         vehicles, params = self._vehicles(snapshot, ego, frame, key, all_params)
         v_ego = float(snapshot.speed[ego])
         mandatory = navigation.mandatory_change(frame, float(vehicles.s[0]), v_ego)
-        # The ego is planned as moving: with hold_standing a standing ego has a_acc = 0 now, which makes 0 m the
-        # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
-        # (else it creeps up in pulses, each a new danger episode).
-        ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
-        params = _ego_moving(params, ego_moving)
-        v_road = _reference_speed(frame, vehicles, v_ego, cfg.desired_speed)
-        s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
-        # A mandatory change that the barrier held in the cycle before seeks its gap: it aims at the gap it reaches
-        # soonest, short of the lane end's waiting margin.
-        seek = navigation.seek_speed(*self._aim_vehicles(snapshot, ego, frame, all_params, ego_moving), mandatory,
-                                     float(frame.end_s[CURRENT]) - s_front - cfg.sim.lane_end_margin, v_road,
-                                     cfg.sim) if mandatory is not None and mandatory is self._seeking else np.inf
+        # A mandatory change that the barrier held in the cycle before seeks its gap: slower than the target lane.
+        seek = navigation.seek_speed(vehicles, mandatory) if mandatory is not None and mandatory is self._seeking \
+            else np.inf
         self.stats.gap_seek_cycles += int(np.isfinite(seek))
-        v_ref = min(v_road, seek)
+        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
@@ -186,7 +176,13 @@ class EpsilonPlanner:
             branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
                                                         snapshot, ego, horizon)
+        # The ego is planned as moving: with hold_standing a standing ego has a_acc = 0 now, which makes 0 m the
+        # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
+        # (else it creeps up in pulses, each a new danger episode).
+        ego_moving = RssParamArrays.stack([self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))])
+        params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
         ego_params = _row(params, 0)
+        s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
         crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.speed_cap(
             CURRENT, s_front + start, length, cfg.desired_speed))  # as the rollouts drive it through the junction
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
@@ -283,15 +279,6 @@ class EpsilonPlanner:
             chain=np.concatenate([chain_e, key.chain]).astype(int))
         params = all_params.take(rows)
         return vehicles, params
-
-    def _aim_vehicles(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, all_params: RssParamArrays,
-                      ego_moving: RssParamArrays) -> tuple[Vehicles, RssParamArrays]:
-        """The ego and every vehicle up to AIM_REAR_REACH behind it (and R_f ahead) on a key lane, with their RSS
-        parameters (the ego's as while moving): what a held mandatory change aims at a gap among
-        (:func:`.gap_aim.aim_at_gap`)."""
-        wide = key_vehicles(snapshot, ego, frame, np.full(len(snapshot.ids), AIM_REAR_REACH))
-        vehicles, params = self._vehicles(snapshot, ego, frame, wide, all_params)
-        return vehicles, _ego_moving(params, ego_moving)
 
     @staticmethod
     def _owed_braking(snapshot: WorldSnapshot, key: KeyVehicles, owed: OwedResponses | None,
@@ -443,11 +430,6 @@ def _speed_reach(v: float) -> float:
 
 def _target(lat: Lat) -> int:
     return TARGET_CHAIN[lat]
-
-
-def _ego_moving(params: RssParamArrays, ego_moving: RssParamArrays) -> RssParamArrays:
-    """``params`` (row 0 the ego's) with the ego's a_acc as while moving (``ego_moving``, one row)."""
-    return replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
 
 
 def _row(params: RssParamArrays, i: int):

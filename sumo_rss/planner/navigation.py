@@ -6,15 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rss.params import RssParamArrays
 from ..rss.responsibility import OwedResponses
 from ..sim.snapshot import WorldSnapshot
 from .behavior.dcp_tree import Lat, Policy
 from .behavior.evaluation import TARGET_CHAIN
-from .behavior.forward_sim import SimResult, SimSettings, Vehicles
+from .behavior.forward_sim import SimResult, Vehicles
 from .behavior.key_vehicles import KeyVehicles
 from .behavior.manager import LaneChangeContext
-from .gap_aim import aim_at_gap
 from .lanes import CURRENT, LEFT, RIGHT
 from .road_frame import RoadFrame
 
@@ -29,9 +27,8 @@ DROP_BACK_M, DROP_BACK_SLOWER = 10.0, 3.0
 # CHANGE_PROGRESS_M [m] towards the target lane within the horizon: a discretionary one is then called off, a
 # mandatory one seeks a gap.
 STILL_IN_LANE_M, CHANGE_PROGRESS_M = 0.3, 0.5
-# [m/s] Where no gap is reachable (gap_aim), a held mandatory change seeks one this much slower than the slower of the
-# target lane's nearest cars ahead of and behind the ego, so that the gaps come by (docs/planner.md, "highway_exit on
-# seeds 0-19").
+# [m/s] A held mandatory change seeks its gap this much slower than the slower of the target lane's nearest cars
+# ahead of and behind the ego, so that the gaps come by (docs/planner.md, "highway_exit on seeds 0-19").
 SEEK_SLOWER = 5.0
 
 
@@ -108,23 +105,15 @@ def change_stuck(context: LaneChangeContext | None, now: float, policies: list[P
     return change_held(context.direction, policies, policy_of, sim, offset)
 
 
-def seek_speed(vehicles: Vehicles, params: RssParamArrays, direction: Lat, room: float, v_max: float,
-               settings: SimSettings) -> float:
-    """[m/s] The speed at which a held mandatory change towards ``direction`` seeks its gap: the speed that takes the
-    ego (column 0 of ``vehicles``; ``params`` per column) soonest into an RSS-legal gap of the target lane
-    (:func:`.gap_aim.aim_at_gap`, within ``room`` [m] of lane ahead of its front bumper and at most ``v_max``; faster
-    to get ahead of a car, slower to slip in behind one; inf where a gap is legal now, which the change takes at
-    the road's speed). Where no gap is reachable, SEEK_SLOWER below the slower of
-    the nearest cars ahead of and behind the ego in the target lane (inf: no car there): beside the target lane's
-    traffic at its speed the gap beside the ego never changes, and under RSS it is rarely long enough (~240 m at
-    30 m/s under ad_rss); slower, the ego lets the cars pass until a gap behind them is RSS-safe. The evasive
-    speed-up into the nearest gap (epsilon.md §3.6) is off meanwhile: it would keep the ego beside the car it
-    cannot cut in front of."""
+def seek_speed(vehicles: Vehicles, direction: Lat) -> float:
+    """[m/s] The speed at which a held mandatory change towards ``direction`` seeks its gap: SEEK_SLOWER below the
+    slower of the nearest cars ahead of and behind the ego (column 0 of ``vehicles``) in the target lane (inf: no car
+    there). Beside the target lane's traffic at its speed the gap beside the ego never changes, and under RSS it is
+    rarely long enough (~240 m at 30 m/s under ad_rss); slower, the ego lets the cars pass until a gap behind them
+    is RSS-safe, and being slower than the cars around the gap shortens the gap it needs (the rear car's distance
+    grows, the front car's falls faster). The evasive speed-up into the nearest gap (epsilon.md §3.6) is off
+    meanwhile: it would keep the ego beside the car it cannot cut in front of."""
     target = TARGET_CHAIN[direction]
-    aim = aim_at_gap(vehicles, target, params, room, v_max, settings.commit_time, settings.ego_limits.max_accel,
-                     settings.ego_idm.comfort_brake)
-    if aim is not None:  # a gap legal now needs no aim: the change takes it at the road's speed
-        return aim.speed if aim.time > 0.0 else np.inf
     ds = vehicles.s[1:] - vehicles.s[0]
     in_lane = vehicles.chain[1:] == target
     speeds = vehicles.speed[1:]
