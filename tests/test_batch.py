@@ -21,7 +21,7 @@ from conftest import REPO, SCENARIOS, run_cli, two_scenario_batch, write_scenari
 from sumo_rss import load_scenario
 from sumo_rss.batch.executors import LocalExecutor, RayExecutor
 from sumo_rss.batch.orchestrator import _BatchLock, run_batch
-from sumo_rss.batch.runner import WRITER_LOCK, run_one
+from sumo_rss.batch.runner import WRITER_LOCK, _work_folder, partial_run_is_live, run_one
 from sumo_rss.batch.spec import BatchSpec, Task, load_batch, parse_seeds
 from sumo_rss.errors import ScenarioError, SumoRssError
 from sumo_rss.report.html import _numbers_as_numbers, ego_traces, write_report
@@ -84,20 +84,38 @@ def test_a_failing_run_is_recorded_and_the_batch_goes_on(two_scenarios, valid_sc
 def test_a_batch_removes_only_its_own_half_written_runs(two_scenarios, tmp_path):
     """A batch cleans up what a killed batch left of its own runs; other ``.partial`` folders below its output
     folder may be runs in progress of another batch, and a partial folder of its own run may be that of a 'sumo-rss
-    run' in progress (it holds the folder's writer lock), which it must not delete."""
+    run' in progress (it holds the folder's writer lock), which it must not delete. A run's folder is ``.starting``
+    until its lock is held: a ``.partial`` one without a lock file is a dead run's, however new."""
     out = tmp_path / "out"
-    own, foreign, sibling, live, young = out / "light" / ".0.k1ll3d.partial", out / "other" / ".0.busy.partial", \
-        out / "light" / ".10.busy.partial", out / "light" / ".0.running.partial", out / "light" / ".0.new.partial"
-    for folder in (own, foreign, sibling, live, young):  # young: a run that has not taken its lock yet
+    light = out / "light"
+    own, foreign, sibling, live = light / ".0.k1ll3d.partial", out / "other" / ".0.busy.partial", \
+        light / ".10.busy.partial", light / ".0.running.partial"
+    lockless, young, stale = light / ".0.n0l0ck.partial", light / ".0.new.starting", light / ".0.old.starting"
+    for folder in (own, foreign, sibling, live, lockless, young, stale):
         folder.mkdir(parents=True)
     (own / WRITER_LOCK).touch()  # its process died: the lock is free
+    an_hour_ago = time.time() - 3600
+    os.utime(stale, (an_hour_ago, an_hour_ago))  # young: a run that has not taken its lock yet; stale: died so
     task = Task(load_scenario(two_scenarios / "light.toml").with_overrides(seed=0), "")
     with (live / WRITER_LOCK).open("w") as writer:  # a 'sumo-rss run' of the same run, writing its folder
         fcntl.flock(writer, fcntl.LOCK_EX)
         rows = run_batch([task], out, LocalExecutor(workers=1), progress=False)
     assert list(rows.status) == ["ok"]
     assert not own.exists() and foreign.is_dir() and sibling.is_dir() and live.is_dir() and young.is_dir()
+    assert not lockless.exists() and not stale.exists()
     assert not list(out.glob("light/0/.*"))  # the finished run's folder keeps no writer lock
+
+
+def test_a_run_folder_appears_as_partial_only_with_its_lock_held(tmp_path):
+    """A batch killed right after a run's folder appeared leaves a folder its resume can tell from a live run's."""
+    final = tmp_path / "out" / "light" / "0"
+    work, writer = _work_folder(final, 0)
+    try:
+        assert work.name.startswith(".0.") and work.name.endswith(".partial") and partial_run_is_live(work)
+        assert [p.name for p in work.parent.iterdir()] == [work.name]  # the .starting folder was renamed
+    finally:
+        writer.close()
+    assert not partial_run_is_live(work)
 
 
 def test_a_run_whose_folder_is_removed_meanwhile_fails_instead_of_reporting_ok(two_scenarios, tmp_path):

@@ -23,7 +23,7 @@ from ..files import make_folder, read_json_object
 from .aggregate import RESERVED_NAMES, write_batch_outputs
 from .executors import LocalExecutor, Outcome, RayExecutor
 from .integrity import damage
-from .runner import MANIFEST_FILE, SUMMARY_FILE, partial_run_is_live, run_directory
+from .runner import MANIFEST_FILE, PARTIAL_SUFFIX, STARTING_SUFFIX, SUMMARY_FILE, partial_run_is_live, run_directory
 from .spec import Task
 
 LOCK_FILE = ".batch.lock"
@@ -145,11 +145,12 @@ class _BatchLock:
 
 
 def _remove_partial_runs(out_dir: Path, tasks: list[Task]) -> None:
-    """Remove the half-written folders of ``tasks``' runs (``<scenario folder>/.<seed>.*.partial``, see
-    :func:`run_one`) whose process has died (a live run holds its folder's writer lock: a ``sumo-rss run`` of the
-    same run may be writing there); only safe while holding the batch lock. Other ``.partial`` folders below
-    ``out_dir`` may be runs of another batch in progress, and are left alone."""
+    """Remove the half-written folders of ``tasks``' runs (``<scenario folder>/.<seed>.*.partial`` and
+    ``.<seed>.*.starting``, see :func:`run_one`) whose process has died (a live run holds its folder's writer lock:
+    a ``sumo-rss run`` of the same run may be writing there); only safe while holding the batch lock. Other
+    ``.partial`` folders below ``out_dir`` may be runs of another batch in progress, and are left alone."""
     for folder in {run_directory(out_dir, t) for t in tasks}:
-        for partial in folder.parent.glob(f".{folder.name}.*.partial"):
+        for partial in (*folder.parent.glob(f".{folder.name}.*{PARTIAL_SUFFIX}"),
+                        *folder.parent.glob(f".{folder.name}.*{STARTING_SUFFIX}")):
             if not partial_run_is_live(partial):
                 shutil.rmtree(partial, ignore_errors=True)

@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, TextIO
 
 import pandas as pd
 import tomli_w
@@ -44,7 +44,9 @@ SUMMARY_FILE = "summary.json"
 PLANNER_FILE = "planner.json"
 MANIFEST_FILE = "manifest.json"
 WRITER_LOCK = ".writer.lock"  # in a run's partial folder: locked (flock) while the run's process writes the folder
-NEW_PARTIAL_S = 60.0  # [s] a partial folder younger than this without a writer lock may be a run just starting
+NEW_PARTIAL_S = 60.0  # [s] a starting folder younger than this without a writer lock may be a run just starting
+PARTIAL_SUFFIX = ".partial"  # a run's folder while its process writes it (it holds the folder's writer lock)
+STARTING_SUFFIX = ".starting"  # the same folder before its process took the lock (:func:`_work_folder`)
 EGO_TRACE_COLUMNS = ("time_s", "x_m", "y_m", "speed_ms", "accel_ms2", "lane_id", "lane_pos_m", "lat_pos_m")
 
 
@@ -149,11 +151,8 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
     task = Task(spec, variant)
     final = run_directory(out_dir, task)
     created = [folder for folder in (final.parent, *final.parent.parents) if not folder.exists()]  # removed on failure
-    work = _work_folder(final, spec.seed)
-    writer = None
+    work, writer = _work_folder(final, spec.seed)
     try:
-        writer = (work / WRITER_LOCK).open("w")
-        fcntl.flock(writer, fcntl.LOCK_EX)  # a batch cleaning up dead runs' partial folders leaves this one alone
         os.chmod(work, 0o777 & ~_umask())  # a folder like any other (mkdtemp's is private), also on a shared folder
         scenario_text = tomli_w.dumps(spec.to_toml_data())
         manifest = {"run_id": task.run_id, "scenario": spec.name, "variant": variant, "seed": spec.seed,
@@ -251,33 +250,53 @@ def run_one(spec: ScenarioSpec, out_dir: Path, *, variant: str = "", fcd: bool |
                 break
         raise
     finally:
-        if writer is not None:
-            writer.close()
+        writer.close()
     return summary
 
 
-def _work_folder(final: Path, seed: int) -> Path:
-    """A new hidden ``.<seed>.*.partial`` folder beside ``final`` (its parents made as needed) to build the run in.
-    Tried again where a failing run of the same scenario removed the empty parent meanwhile."""
+def _work_folder(final: Path, seed: int) -> tuple[Path, TextIO]:
+    """A new hidden ``.<seed>.*.partial`` folder beside ``final`` (its parents made as needed) to build the run in,
+    and its writer lock, held (a batch cleaning up dead runs' folders leaves it alone). The folder is made as
+    ``.<seed>.*.starting`` and renamed once its lock is held, so that a ``.partial`` folder without a held lock
+    is always a dead run's, however soon after its creation the run was killed. Tried again where a failing run
+    of the same scenario removed the empty parent meanwhile."""
     attempts = 3
     while True:
         make_folder(final.parent)
         try:
-            return Path(tempfile.mkdtemp(prefix=f".{seed}.", suffix=".partial", dir=final.parent))
+            starting = Path(tempfile.mkdtemp(prefix=f".{seed}.", suffix=STARTING_SUFFIX, dir=final.parent))
+            break
         except FileNotFoundError as exc:
             attempts -= 1
             if not attempts:
                 raise output_error(final.parent, exc) from None
         except OSError as exc:
             raise output_error(final.parent, exc) from None
+    work = starting.with_name(starting.name[:-len(STARTING_SUFFIX)] + PARTIAL_SUFFIX)
+    writer = None
+    try:
+        writer = (starting / WRITER_LOCK).open("w")
+        fcntl.flock(writer, fcntl.LOCK_EX)
+        starting.rename(work)  # the lock stays held: it is on the file, which moves with its folder
+    except BaseException as exc:
+        if writer is not None:
+            writer.close()
+        shutil.rmtree(starting, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise output_error(final.parent, exc) from None
+        raise
+    return work, writer
 
 
 def partial_run_is_live(partial: Path) -> bool:
-    """Whether a run's process may still be writing the ``.partial`` folder: it holds the folder's writer lock, or
-    the folder is too new to have one yet (a run takes it right after creating the folder)."""
+    """Whether a run's process may still be writing the ``.partial`` or ``.starting`` folder: it holds the folder's
+    writer lock, or the folder is a ``.starting`` one too new to have one yet (a run takes it right after creating
+    the folder). A ``.partial`` folder without its lock file is a dead run's (:func:`_work_folder`)."""
     try:
         fh = (partial / WRITER_LOCK).open("r")
     except FileNotFoundError:  # a run that died before it took the lock, unless it is just starting
+        if not partial.name.endswith(STARTING_SUFFIX):
+            return False
         try:
             return time.time() - partial.stat().st_mtime < NEW_PARTIAL_S
         except OSError:  # the folder is gone
