@@ -34,6 +34,23 @@ def with_person(**changed: str) -> str:
     return text[:step] + element * (2 if twice else 1) + text[step:]
 
 
+def with_outside_step(tag: str, after: str) -> tuple[str, int]:
+    """The valid FCD of test_bad_input with a ``<tag>`` (a vehicle's attributes) on a line of its own after the
+    first line that starts with ``after``, outside every time step; and that line's number."""
+    lines = fcd_text().split("\n")
+    at = next(k for k, line in enumerate(lines) if line.lstrip().startswith(after)) + 1
+    lines.insert(at, f'    <{tag} id="c" x="1.00" y="-5.25" angle="90.00" type="car" speed="3.00" lane="hw0_1"/>')
+    return "\n".join(lines), at + 1
+
+
+def outside_step(tag: str, after: str) -> Case:
+    """A road user outside every time step (after the line starting with ``after``): an error naming the file, the
+    line and the form SUMO writes (it was skipped without a word)."""
+    text, line = with_outside_step(tag, after)
+    return Case(audit(text), (f"f.xml: line {line}: <{tag}> outside a <timestep>: expected every <{tag}> inside a "
+                              '<timestep time="..."> element', "(SUMO writes <fcd-export><timestep"))
+
+
 def cut_mid_row(name: str) -> str:
     """BATCH's CSV ``name`` cut in the middle of its last row, as a copy or a full disk leaves it."""
     text = BATCH[name]
@@ -68,6 +85,9 @@ CASES: dict[str, Case] = {
         "f.xml, time step 0.1 s: vehicle 'a' (vehicle 1 of the step): lane: expected SUMO's lane id, got ''",)),
     "fcd-person-id-empty": Case(audit(with_person(id="")), (
         "f.xml, time step 0.1 s: person: id: expected SUMO's person id, got ''",)),
+    "fcd-vehicle-between-time-steps": outside_step("vehicle", "</timestep>"),
+    "fcd-vehicle-before-the-first-time-step": outside_step("vehicle", "<fcd-export>"),
+    "fcd-person-after-the-last-time-step": outside_step("person", "</timestep>"),
     "fcd-time-step-repeated": Case(audit(fcd_text().replace('time="0.20"', 'time="0.10"')), (
         "f.xml: time step 0.1 s is repeated: time: expected a time after the step before's",)),
     "report-summary-cut-mid-row": Case(report(**{"batch_summary.csv": cut_mid_row("batch_summary.csv")}), (

@@ -157,3 +157,21 @@ def test_plain_decimals_read_fast_are_the_floats_python_reads_and_other_forms_ar
     for other in ("1e-07", "1234567890123456", "+1.5", "0x10", "inf"):  # not plain decimals: float reads the column
         step = _read_step_with_xs(tmp_path / "fcd.xml", ["1.5", other])
         assert step._scanned is not None and step.column("x") == ("1.5", other) and step.numbers("x") is None
+
+
+@pytest.mark.parametrize("tag", ["vehicle", "person", "container"])
+def test_a_road_user_outside_every_step_is_an_error_at_its_line_after_steps_read_fast(tmp_path, tag):
+    """A ``<vehicle>`` (person, container) between two steps of SUMO's layout, after steps the fast path read: an
+    error naming the element and its line in the file (it was skipped without a word)."""
+    stray = f'    <{tag} id="stray" x="1.0" y="2.0"/>\n'
+    text = _fcd(30, {12: _step(12, "".join(_vehicle(k, 12) for k in range(4))) + stray})
+    path = tmp_path / "fcd.xml"
+    path.write_text(text)
+    line = text.split("\n").index(stray.rstrip("\n")) + 1
+    fast = []
+    with pytest.raises(fcd_parse.OutsideStepError, match=rf"^line {line}: <{tag}> outside a <timestep>$"):
+        with open(path, "rb") as source:
+            parser = FcdParser(source)
+            parser.read_root()
+            fast.extend(step._scanned is not None for step in parser)
+    assert 0 < sum(fast) and len(fast) <= 13, fast  # steps read fast before it (the line count kept), none after

@@ -98,7 +98,7 @@ def _refuse(where: str, ids: np.ndarray, name: str, values: np.ndarray, fine: np
 
 
 def fcd_error(message: str) -> SumoRssError:
-    from .fcd import FcdError  # the reader's error (this module is its helper)
+    from .fcd_inputs import FcdError  # the reader's error (this module is its helper)
 
     return FcdError(message)
 

@@ -20,6 +20,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ..sumo_xml import MALFORMED
+from .fcd_names import NameTable
 from .fcd_scan import STEP_END, ScannedStep, StepLayout
 
 BLOCK_BYTES = 1 << 16  # read and parsed at once (progress moves in these steps)
@@ -27,6 +28,15 @@ MAX_PENDING = 1 << 26  # [bytes] held back for the fast path at most, waiting fo
 FAST_ENCODINGS = ("utf-8", "utf8", "us-ascii", "ascii")  # declared encodings in which ASCII text reads as itself
 ROOT_TAG = "fcd-export"
 UNAUDITED_TAGS = ("container",)  # road users an FCD lists beside vehicles and persons that are not audited
+ROAD_USER_TAGS = ("vehicle", "person", *UNAUDITED_TAGS)  # each belongs inside a <timestep>
+
+
+class OutsideStepError(ValueError):
+    """A road user's element (``tag``) outside every ``<timestep>``, at ``line`` of the file."""
+
+    def __init__(self, tag: str, line: int):
+        super().__init__(f"line {line}: <{tag}> outside a <timestep>")
+        self.tag, self.line = tag, line
 
 
 @dataclass
@@ -75,6 +85,13 @@ class FcdStep:
             return columns.get(name, (None,) * len(self))
         return tuple(r.get(name) for r in self.rows())
 
+    def numbered(self, name: str, table: NameTable) -> np.ndarray:
+        """Attribute ``name`` of every vehicle as its number in ``table`` (:meth:`NameTable.of`); every vehicle must
+        have it (a step without vehicles: none)."""
+        if self._scanned is not None and self.has(name):
+            return self._scanned.numbered(name, table)
+        return table.of(self.column(name))
+
     def numbers(self, name: str) -> np.ndarray | None:
         """Attribute ``name`` of every vehicle as floats, to the bit what ``float`` gives for each, where the fast
         path read the step and every value is a plain decimal (:meth:`ScannedStep.numbers`); else None."""
@@ -107,12 +124,13 @@ class FcdStep:
 class _Handler:
     """expat callbacks collecting finished steps."""
 
-    def __init__(self, position: Callable[[], int]) -> None:
+    def __init__(self, position: Callable[[], int], line: Callable[[], int]) -> None:
         self.root: str | None = None
         self.done: list[FcdStep] = []
         self.started_time: str | None = None  # of the last step begun
         self.closed_at = -1  # where the end tag of the last step closed at the root's level begins [bytes given]
         self._position = position  # of the event being handled [bytes given to expat]
+        self._line = line  # of the event being handled (the file's: expat is given the fast path's line breaks)
         self._step: FcdStep | None = None
         self._depth = 0  # of the element being read (1: the root)
         self._step_depth = 0
@@ -129,6 +147,8 @@ class _Handler:
             step.vehicles.append(attrs)
         elif self._depth == 1:
             self.root = name
+        elif step is None and name in ROAD_USER_TAGS and self.root == ROOT_TAG:  # (other files: the reader says so)
+            raise OutsideStepError(name, self._line())
         elif name == "timestep":
             self.started_time = _attribute(attrs, "time")
             self._step = FcdStep(self.started_time)
@@ -157,12 +177,13 @@ def _attribute(attrs: list[str], name: str) -> str | None:
 class FcdParser:
     """The steps of an FCD read from ``source`` (a binary file), as they finish. ``started_time``: the ``time`` of
     the last step begun (for messages). A damaged file raises ``xml.etree.ElementTree.ParseError`` (with expat's
-    ``code`` and ``position``, as ElementTree's parsers do)."""
+    ``code`` and ``position``, as ElementTree's parsers do); a vehicle, person or container outside every time step
+    :class:`OutsideStepError`."""
 
     def __init__(self, source: IO[bytes]):
         self.source = source
         self._parser = expat.ParserCreate()
-        self._handler = _Handler(lambda: self._parser.CurrentByteIndex)
+        self._handler = _Handler(lambda: self._parser.CurrentByteIndex, lambda: self._parser.CurrentLineNumber)
         self._parser.ordered_attributes = True
         self._parser.StartElementHandler = self._handler.start
         self._parser.EndElementHandler = self._handler.end

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .fcd_names import NameTable
+
 STEP_END = b"</timestep>"
 
 
@@ -58,6 +60,11 @@ class ScannedStep:
         bounds = self._offsets[:, self.names.index(name)]
         text = self._decoded
         return tuple([text[a:b] for a, b in zip(bounds[:, 0].tolist(), bounds[:, 1].tolist())])
+
+    def numbered(self, name: str, table: NameTable) -> np.ndarray:
+        """Attribute ``name`` (one of ``names``) of every vehicle as its number in ``table``
+        (:meth:`NameTable.of_bytes`: no string per vehicle)."""
+        return table.of_bytes(self._text, self._data, np.ascontiguousarray(self._offsets[:, self.names.index(name)]))
 
     def numbers(self, name: str) -> np.ndarray | None:
         """Attribute ``name`` of every vehicle as floats where every value is a plain decimal (what ``float`` gives
