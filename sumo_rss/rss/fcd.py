@@ -74,16 +74,15 @@ def audit_fcd(fcd: Path, network: RoadNetwork, params: ParamResolver, *, vehicle
     absent = set(ego_ids)  # ego ids not seen in the file yet
     reader = FcdReader(fcd, network, vehicles, ego_ids)
     steps = 0
-    # Not in the FCD's steps so far (a set: np.isin sorted every step's ids, ~3 % of acosta's audit).
+    # Not in the FCD's steps so far (looked up among the reader's vehicles, not in every step's ids).
     unseen = set(reports.parties().tolist()) if reports is not None else set()
     for steps, snapshot in enumerate(reader, start=1):
         if steps == 1:
             warn_late_signal_states(signals, fcd, snapshot.time)
         snapshot = replace(snapshot, tls_states=signals.states(snapshot.time))
         if absent or unseen:
-            ids = snapshot.ids.tolist()
-            absent.difference_update(ids)
-            unseen.difference_update(ids)
+            absent.difference_update([v for v in absent if v in reader.vehicles_seen])
+            unseen.difference_update([v for v in unseen if v in reader.vehicles_seen])
         if reports is not None:
             auditor.observe(snapshot, contacts.step(reports.take_until(snapshot.time)))
         else:

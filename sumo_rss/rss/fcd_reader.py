@@ -66,6 +66,11 @@ class FcdReader:
         self._routes = np.zeros(0, dtype=object)  # by vehicle number: its route (VehicleInfo.route_of, () for none)
         self._type_table = np.zeros((0, 3))  # per vType seen: length, width [m], whether of vClass bicycle
 
+    @property
+    def vehicles_seen(self) -> dict[str, int]:
+        """The ids of the vehicles in the steps read so far (keys; the values are their numbers)."""
+        return self._ids.number
+
     def __iter__(self) -> Iterator[WorldSnapshot]:
         if not self.path.is_file():
             raise FcdError(f"{self.path}: FCD file not found")
