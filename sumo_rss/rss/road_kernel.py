@@ -28,18 +28,40 @@ FLAG_COLUMNS = ("a_is_rear", "a_is_left", "lon_safe", "lat_safe", "wrong_way_a",
 
 
 @kernel
-def candidate_keys(pairs, cx, cy, reach, min_gap, size, n):
-    """int64 keys i·n + j of the pairs (i, j) of ``pairs`` [m, 2] (rows of ``n`` vehicles) whose centres (``cx``,
-    ``cy`` [m]) are within both cars' worst-case ``reach``, the larger λ ``min_gap`` and both half sizes ``size``
-    [m] of each other, in the order of ``pairs``."""
-    keys = np.empty(pairs.shape[0], dtype=np.int64)
+def candidate_keys(cx, cy, reach, min_gap, size):
+    """int64 keys i·n + j (i < j, unsorted) of the vehicle pairs whose centres (``cx``, ``cy`` [m]) are within
+    both cars' worst-case ``reach``, the larger λ ``min_gap`` and both half sizes ``size`` [m] of each other.
+
+    Sweep and prune: each car's square of half width e = reach + size + λ_max / 2 (a pair's bound never exceeds the
+    sum of the two cars' e), the squares swept along the axis the cars spread most along, and only the pairs whose
+    squares overlap on both axes checked. Cost grows with the cars and their near neighbours, not their square."""
+    n = cx.size
+    keys = np.empty(max(16, 4 * n), dtype=np.int64)
+    if n < 2:
+        return keys[:0]
+    extent = (reach + size + 0.5 * min_gap.max()) * (1.0 + 1e-9) + 1e-6  # a little wider for rounding
+    along, across = (cx, cy) if cx.max() - cx.min() >= cy.max() - cy.min() else (cy, cx)
+    low = along - extent
+    order = np.argsort(low, kind="mergesort")
     count = 0
-    for k in range(pairs.shape[0]):
-        i, j = pairs[k, 0], pairs[k, 1]
-        dist = np.hypot(cx[i] - cx[j], cy[i] - cy[j])
-        if dist <= reach[i] + reach[j] + np.maximum(min_gap[i], min_gap[j]) + size[i] + size[j]:
-            keys[count] = i * n + j
-            count += 1
+    for a in range(n):
+        p = order[a]
+        high = along[p] + extent[p]
+        for b in range(a + 1, n):
+            q = order[b]
+            if low[q] > high:
+                break
+            if abs(across[p] - across[q]) > extent[p] + extent[q]:
+                continue
+            i, j = min(p, q), max(p, q)
+            dist = np.hypot(cx[i] - cx[j], cy[i] - cy[j])
+            if dist <= reach[i] + reach[j] + np.maximum(min_gap[i], min_gap[j]) + size[i] + size[j]:
+                if count == keys.size:
+                    grown = np.empty(2 * keys.size, dtype=np.int64)
+                    grown[:count] = keys
+                    keys = grown
+                keys[count] = i * n + j
+                count += 1
     return keys[:count]
 
 

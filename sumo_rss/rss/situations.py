@@ -1,8 +1,8 @@
 """Situations: which vehicle pairs matter at one step, in which coordinate frame, and are they safe.
 
 Stages (each a function over index arrays, no loop over pairs):
-1. :func:`candidate_pairs` — a cKDTree query with a radius no relevant pair can exceed (twice the largest
-   worst-case stopping distance at current speeds plus vehicle sizes), then a per-pair bound.
+1. :func:`candidate_pairs` — the pairs whose centres are within both cars' worst-case stopping distances at
+   current speeds plus λ and their sizes (a compiled sweep over each car's reach along the axis they spread on).
 2. :func:`classify` — same direction (same edge, or one edge ahead of the other along the route, or along any
    path when the route is unknown) or opposite direction (the two directions of one road, approaching).
    Intersection and merge situations (conflicting routes through a junction) are the next stage to add here.
@@ -17,7 +17,6 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..angles import wrap_angle
 from ..jit import jitable
@@ -288,17 +287,11 @@ def candidate_pairs(snapshot: WorldSnapshot, frame: VehicleFrame) -> tuple[np.nd
     n = len(snapshot)
     if n < 2:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    from .road_kernel import candidate_keys  # numba: at the first step with two vehicles
     size = 0.5 * (snapshot.length + snapshot.width)
-    gap = frame.params.min_lon_gap
-    radius = candidate_radius(snapshot, frame)
-    tree = cKDTree(np.column_stack([frame.cx, frame.cy]))
-    pairs = tree.query_pairs(radius, output_type="ndarray")
-    if pairs.size == 0:
-        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    from .road_kernel import candidate_keys  # numba: at the first pair
-    key = candidate_keys(pairs, frame.cx, frame.cy, frame.reach, gap, size, n)
+    key = candidate_keys(frame.cx, frame.cy, frame.reach, frame.params.min_lon_gap, size)
     # By i, then j (the order lexsort gives): one key per pair, sorted (int32 where it fits: twice as fast).
-    key = np.sort(key.astype(np.int32) if n * n < 2 ** 31 else key).astype(pairs.dtype)
+    key = np.sort(key.astype(np.int32) if n * n < 2 ** 31 else key).astype(np.int64)
     return key // n, key % n
 
 
