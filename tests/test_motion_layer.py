@@ -1,6 +1,7 @@
 """The motion layer's choices on the highway net's straight hw0 (d = 0: the middle lane's centre): SSC when the
 corridor exists, the low-speed primitive at walking pace, the previous trajectory for a short while when the
-corridor fails, then the behaviour layer's emergency backup."""
+corridor fails, then the behaviour layer's emergency backup; and the executed heading of a plan that creeps
+sideways."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -9,8 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import NETWORKS
+from sumo_rss.planner.behavior.controllers import VehicleLimits
 from sumo_rss.planner.lanes import lane_chains
-from sumo_rss.planner.motion.frenet_plan import from_samples
+from sumo_rss.planner.motion.frenet_plan import MAX_CURVATURE, FrenetPlan, from_samples
 from sumo_rss.planner.motion.ssc import MotionInput, MotionLayer, MotionSettings
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
@@ -86,3 +88,26 @@ def test_the_plan_starts_at_the_measured_acceleration_within_the_dynamic_bounds(
     assert layer.stats.outcomes["ssc"] == 1
     assert plan.s_ddot[0] == pytest.approx(starts_at, abs=1e-6)
     assert layer.stats.start_clipped == clipped
+
+
+def test_creeping_sideways_does_not_turn_the_ego_on_the_spot(frame):
+    """A plan that moves the ego 0.6 m across at walking pace while it gains 0.1 m along the lane: its velocity
+    points 80° off the lane, but a car cannot turn on the spot; the heading turns by at most MAX_CURVATURE per metre
+    of path (highway_exit seed 8 stood turned by 1.1 rad across a lane's edge). At speed the heading is the
+    velocity's direction, as before."""
+    t = 10.0 + np.round(np.arange(21) * 0.1, 10)
+    u = t - t[0]
+    s, d = 100.0 + 0.05 * u, -0.3 * u  # [m] 0.05 m/s along, 0.3 m/s to the right
+    creep = FrenetPlan(frame, t, s, d, np.full(t.size, 0.05), np.full(t.size, -0.3), np.zeros(t.size),
+                       np.zeros(t.size))
+    heading = creep.to_world(0.5 * LENGTH, 0.0).heading - frame.to_world(s, d, np.zeros(t.size))[2]
+    path = np.hypot(0.05, 0.3) * u
+    tightest = np.tan(VehicleLimits().max_steer) / VehicleLimits().wheelbase  # [1/m] the bicycle model's
+    assert MAX_CURVATURE == pytest.approx(tightest) and 0.3 < tightest < 0.4
+    assert np.all(np.abs(heading) <= tightest * path + 1e-9)
+    assert heading[-1] == pytest.approx(-tightest * path[-1])  # turning as fast as it may, towards its way
+    change = FrenetPlan(frame, t, 100.0 + 20.0 * u, -0.5 * u, np.full(t.size, 20.0), np.full(t.size, -0.5),
+                        np.zeros(t.size), np.zeros(t.size))
+    heading = change.to_world(0.5 * LENGTH, np.arctan2(-0.5, 20.0)).heading - \
+        frame.to_world(change.s, change.d, np.zeros(t.size))[2]
+    assert np.allclose(heading, np.arctan2(-0.5, 20.0), atol=1e-9)

@@ -7,9 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...trajectory import Trajectory
+from ..behavior.controllers import VehicleLimits
 from ..road_frame import RoadFrame
 
 STILL = 0.1  # [m/s] below this the heading is held (a heading from a near-zero velocity is noise)
+# [1/m] The heading turns by at most this per metre of path: the forward simulation's bicycle model's tightest
+# curvature (tan of its maximum steering angle over its wheelbase: 0.35). The direction of a velocity of a few cm/s
+# is no heading: an ego creeping sideways at the end of a lane stood turned by 1.1 rad (docs/planner.md).
+MAX_CURVATURE = float(np.tan(VehicleLimits.max_steer) / VehicleLimits.wheelbase)
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,7 +41,7 @@ class FrenetPlan:
         speed = np.hypot(self.s_dot, self.d_dot)
         moving = speed >= STILL
         heading = np.where(moving, np.arctan2(self.d_dot, np.maximum(self.s_dot, 0.0)), np.nan)
-        heading = _hold(heading, heading_still)
+        heading = _turn_limited(_hold(heading, heading_still), self.s, self.d, heading_still)
         accel = np.where(moving, (self.s_dot * self.s_ddot + self.d_dot * self.d_ddot) / np.maximum(speed, STILL),
                          self.s_ddot)
         x, y, h = self.frame.bumper_at(self.s, self.d, heading, half_length)
@@ -56,3 +61,14 @@ def from_samples(frame: RoadFrame, t: np.ndarray, s: np.ndarray, d: np.ndarray, 
     speed and heading, accelerations their finite differences."""
     s_dot, d_dot = speed * np.cos(heading), speed * np.sin(heading)
     return FrenetPlan(frame, t, s, d, s_dot, d_dot, np.gradient(s_dot, t), np.gradient(d_dot, t))
+
+
+def _turn_limited(heading: np.ndarray, s: np.ndarray, d: np.ndarray, first: float) -> np.ndarray:
+    """``heading`` [rad] with each sample's turn from the one before (``first`` before the first) limited to
+    MAX_CURVATURE times the path between their positions ``s``, ``d`` [m] (the first sample's path: none)."""
+    path = np.concatenate([[0.0], np.hypot(np.diff(s), np.diff(d))]) * MAX_CURVATURE
+    out = np.empty_like(heading)
+    previous = first
+    for k in range(heading.size):
+        previous = out[k] = min(max(heading[k], previous - path[k]), previous + path[k])
+    return out
