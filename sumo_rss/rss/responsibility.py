@@ -156,6 +156,8 @@ class ResponsibilityTracker:
         return f"{e.a_id[i]}|{e.b_id[i]}|{tag}{self._episode_count[int(e.keys[i])]}"
 
     def _open_new(self, step: StepInput, keys: np.ndarray, rows: np.ndarray) -> None:
+        """Open the episodes of the pairs ``keys`` (situation ``rows``) that became dangerous now: a new serial
+        each, or the one of the pair's episode that ended within ρ (it goes on)."""
         n = len(keys)
         serials = np.arange(self._next_serial, self._next_serial + n, dtype=np.int64)
         for r, k in enumerate(keys.tolist()):
