@@ -5,7 +5,7 @@ import json
 import re
 
 from conftest import REPO
-from sumo_rss.rss import auditor, formulas, records, responsibility, situations
+from sumo_rss.rss import auditor, formulas, open_episodes, records, situations
 from sumo_rss.rss.params import PARAM_NAMES
 
 OUTPUTS = (REPO / "docs" / "outputs.md").read_text(encoding="utf-8")
@@ -18,7 +18,7 @@ def _table(heading: str) -> list[list[str]]:
 
 
 def test_every_glossary_code_name_exists():
-    known = set(PARAM_NAMES) | set(dir(formulas)) | set(dir(responsibility)) | set(dir(situations)) | \
+    known = set(PARAM_NAMES) | set(dir(formulas)) | set(dir(open_episodes)) | set(dir(situations)) | \
         set(records.EPISODE_COLUMNS) | set(auditor.COLLISION_COLUMNS)
     names = [n for row in _table("## Glossary") for n in re.findall(r"`([^`]+)`", row[1])]
     assert len(names) >= 15
@@ -35,7 +35,7 @@ def test_documented_columns_are_the_written_columns():
 
 
 def test_documented_constraints_and_situations_exist():
-    for constraint in (*(c.value for c in responsibility.Constraint), records.EVASIVE_CONSTRAINT,
+    for constraint in (*(c.value for c in open_episodes.Constraint), records.EVASIVE_CONSTRAINT,
                        records.OCCLUSION_CONSTRAINT):
         assert f"`{constraint}`" in OUTPUTS
     for kind in situations.SituationType:

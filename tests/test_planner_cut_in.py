@@ -19,7 +19,7 @@ from sumo_rss.planner.lanes import CURRENT
 from sumo_rss.rss import formulas
 from sumo_rss.rss.auditor import ParamResolver
 from sumo_rss.rss.params import RssParamArrays, RssParams
-from sumo_rss.rss.responsibility import OwedResponses
+from sumo_rss.rss.owed_responses import OwedResponses
 from sumo_rss.sim.snapshot import WorldSnapshot
 from sumo_rss.trajectory import TrajectoryState
 

@@ -12,7 +12,8 @@ from sumo_rss.planner.lanes import lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import ParamResolver
-from sumo_rss.rss.responsibility import OwedResponses, in_line
+from sumo_rss.rss.compliance import in_line
+from sumo_rss.rss.owed_responses import OwedResponses
 from sumo_rss.sim.snapshot import WorldSnapshot
 from sumo_rss.trajectory import TrajectoryState
 

@@ -18,7 +18,7 @@ from sumo_rss.planner.navigation import SEEK_SLOWER, change_held, change_stuck, 
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
 from sumo_rss.rss.auditor import ParamResolver
-from sumo_rss.rss.responsibility import OwedResponses
+from sumo_rss.rss.owed_responses import OwedResponses
 
 
 @pytest.fixture(scope="module")

@@ -50,7 +50,8 @@ from adrss_oracle import _dynamics, fill_unstructured
 from sumo_rss.rss.formulas import is_safe_distance, lat_safe_distance, lon_safe_distance_opposite, \
     lon_safe_distance_same_dir
 from sumo_rss.rss.params import RssParamArrays, RssParams
-from sumo_rss.rss.responsibility import ResponsibilityTracker, StepInput
+from sumo_rss.rss.responsibility import ResponsibilityTracker
+from sumo_rss.rss.step_input import StepInput
 from sumo_rss.rss.situations import PairSituations
 
 _P, _W, _C, _S = ad_rss.physics, ad_rss.rss.world, ad_rss.rss.core, ad_rss.rss.state

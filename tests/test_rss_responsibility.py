@@ -9,7 +9,8 @@ import pytest
 
 from sumo_rss.rss.auditor import INTERSECTION_KEY, collision_blame
 from sumo_rss.rss.params import RssParamArrays, RssParams
-from sumo_rss.rss.responsibility import ResponsibilityTracker, StepInput
+from sumo_rss.rss.responsibility import ResponsibilityTracker
+from sumo_rss.rss.step_input import StepInput
 from sumo_rss.rss.situations import FIRST_INTERSECTION_CODE, RULE_ABLE_TO_STOP, RULE_LON, PairSituations
 
 PAIR = np.int64(1)  # uids 0 ('a') and 1 ('b'): (0 << 32) | 1

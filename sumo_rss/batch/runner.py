@@ -31,7 +31,7 @@ from ..road.network import RoadNetwork
 from ..rss.auditor import Auditor, ParamResolver
 from ..rss.occlusion import read_occluders
 from ..rss.params import MODEL_VERSION
-from ..rss.responsibility import RESPONSIBLE_VALUES
+from ..rss.records import RESPONSIBLE_VALUES
 from ..scenario import ScenarioSpec
 from ..sim.demand import EGO_TYPE
 from ..sim.snapshot import EGO_CLASS, WorldSnapshot

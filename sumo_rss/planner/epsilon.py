@@ -20,7 +20,7 @@ from ..heap import keep_freed_memory
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
-from ..rss.responsibility import OwedResponses
+from ..rss.owed_responses import OwedResponses
 from ..road.junctions import JunctionModel
 from ..road.network import RoadNetwork
 from ..road.routes import RouteTable

@@ -27,7 +27,8 @@ import numpy as np
 from ..rss import formulas
 from ..rss.auditor import ParamResolver
 from ..rss.params import RssParamArrays
-from ..rss.responsibility import OwedResponses, in_line, lateral_speed_bound
+from ..rss.compliance import in_line, lateral_speed_bound
+from ..rss.owed_responses import OwedResponses
 from ..rss.sorted_keys import find_sorted
 from ..sim.snapshot import WorldSnapshot
 from ..trajectory import TrajectoryState
@@ -240,7 +241,7 @@ class ProperResponseGuard:
 class _SidesAtNextStep:
     """The sides towards which the auditor will judge the ego's lateral speed at the step being planned, per open
     episode that owes the lateral response, for a lateral speed u [m/s] of the ego's bumper: the side each other car
-    is on then, or none where the two are in line then (responsibility.in_line, the auditor's own test).
+    is on then, or none where the two are in line then (compliance.in_line, the auditor's own test).
 
     The other car is taken anywhere between where it is and where its present lateral speed takes it over the
     step (a car in a lane change: its centre moves slower than its bumper while it turns in); every side it can be

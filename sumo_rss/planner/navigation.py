@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rss.responsibility import OwedResponses
+from ..rss.owed_responses import OwedResponses
 from ..sim.snapshot import WorldSnapshot
 from .behavior.dcp_tree import Lat, Policy
 from .behavior.evaluation import TARGET_CHAIN

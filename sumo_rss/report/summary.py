@@ -8,7 +8,7 @@ import pandas as pd
 
 from ..files import read_csv_table
 
-from ..rss.responsibility import CONSTRAINTS
+from ..rss.open_episodes import CONSTRAINTS
 from ..rss.signals import SignalConstraint
 from ..sim.snapshot import EGO_CLASS
 

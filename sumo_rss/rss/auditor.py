@@ -23,7 +23,9 @@ from .occlusion import OccluderEdges, OcclusionParams
 from .occlusion_track import OcclusionTracker
 from .params import BICYCLE, PERSON, EvasiveParams, RssParamArrays, RssParams, resolve_params
 from .records import VIOLATION_COLUMNS
-from .responsibility import AREA_KEY, EPS_ACCEL, AreaRules, OwedResponses, ResponsibilityTracker, StepInput
+from .owed_responses import OwedResponses
+from .responsibility import ResponsibilityTracker
+from .step_input import AREA_KEY, EPS_ACCEL, AreaRules, StepInput
 from .intersection import KIND_SIGNAL, intersection_situations
 from .numbering import Numbering
 from .person_situations import PersonAudit

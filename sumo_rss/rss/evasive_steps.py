@@ -19,7 +19,7 @@ from ..sim.snapshot import WorldSnapshot
 from .evasive import OPPOSITE_CODE, Candidates, PairRows, candidates, collides, dangerous_at_end, grid
 from .evasive import on_drivable_lanes, owed_to_others
 from .params import RssParamArrays
-from .responsibility import JudgedStep
+from .compliance import JudgedStep
 from .situations import FIRST_INTERSECTION_CODE, PairSituations, VehicleFrame
 from .sorted_keys import find_sorted
 
@@ -45,7 +45,7 @@ class AskedStep:
     (vehicle rows), key, kind, a_is_rear, lon_gap, a_is_left, lat_gap, wrong_way_a, wrong_way_b (None: none); the
     gaps copied (on roads they are two rows of one block of nine, :mod:`.road_kernel`, kept whole by a view). The
     open episodes (copied): serial, uids [·, 2], a_left, owed_lat; and the responsibility tracker's bounds of the
-    step, ``judged`` (:class:`~.responsibility.JudgedStep`, made anew every step; None: none).
+    step, ``judged`` (:class:`~.compliance.JudgedStep`, made anew every step; None: none).
     """
 
     serial: np.ndarray

@@ -6,6 +6,7 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import pandas as pd
 
+RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
 # Rule 5 (rss.md §8, docs/rss.md): the columns episodes.csv gained last, their values where an episode is not asked,
 # and the constraint of its violations.
 RULE5_COLUMNS = ("evasive_checked", "evasive_last_s", "rule5_responsible")

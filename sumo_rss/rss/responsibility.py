@@ -3,136 +3,27 @@
 
 Open episodes live in one struct of arrays sorted by pair key and are rolled over once per step; closed
 episodes and finished violations become records and leave the state, so memory stays bounded by the number of
-pairs that are dangerous *now*.
+pairs that are dangerous *now*. What each step is given: :mod:`.step_input`; the episodes that open at the danger
+threshold: :mod:`.threshold`; the compliance judged at every step: :mod:`.compliance`; what a car owes, for a
+guard: :mod:`.owed_responses`.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .params import RssParamArrays
-from .duties import duties_at_threshold
-from .open_episodes import CONSTRAINTS, N_CONSTRAINTS, Constraint, OpenEpisodes
+from .compliance import TIME_EPS, JudgedStep, judge_step
+from .open_episodes import CONSTRAINTS, OpenEpisodes
 from .episode_log import EpisodeLog, EpisodeParts, join_records
 from .moving_off import StandingCars
+from .owed_responses import OwedResponses, owed_in
 from .sorted_keys import find_sorted
 from .records import EVASIVE_CONSTRAINT, OCCLUSION_CONSTRAINT, RULE5_UNCHECKED
-from ..road_users import PERSON_CLASS
-from .intersection import KIND_SIGNAL
-from .situations import FIRST_INTERSECTION_CODE, SAME_DIRECTION_CODES, SITUATION_CODES, PairSituations
-
-EPS_ACCEL = 0.05  # [m/s²] tolerance on every acceleration bound
-STOPPED_SPEED = 0.05  # [m/s] below this a car counts as stopped
-TIME_EPS = 1e-9  # [s]
-
-
-@dataclass
-class StepInput:
-    """What one step of the tracker needs, per pair (rows of the snapshot in ``a``/``b``)."""
-
-    time: float  # [s]
-    keys: np.ndarray  # int64 pair keys, unique
-    situations: PairSituations
-    ids: np.ndarray  # vehicle ids of the snapshot
-    uids: np.ndarray  # int64 per snapshot row: a number for each vehicle id, the same at every step
-    vclass: np.ndarray
-    accel: np.ndarray  # [m/s²] per snapshot row
-    speed: np.ndarray  # [m/s] per snapshot row
-    params: RssParamArrays  # per snapshot row
-    new_vehicle: np.ndarray  # bool per snapshot row: not seen at the previous step
-    # Intersections: every conflict area's rules of every crossing pair (not only the row kept per pair), and the
-    # number of the area of each row of ``situations`` (-1: a road situation).
-    areas: AreaRules | None = None
-    area_number: np.ndarray | None = None
-    accel_tolerance: float = EPS_ACCEL  # [m/s²] on the acceleration bounds (wider for accelerations measured coarsely)
-    # Rule 4 (:mod:`.occlusion_track`): sorted pair keys and the start [s] of their cars' current run of seeing each
-    # other (+inf while hidden); a response is owed from max(t_b, that start) + ρ. None: every car sees every car.
-    seen_from: tuple[np.ndarray, np.ndarray] | None = None
-
-
-RESPONSIBLE_VALUES = ("a", "b", "both", "none")  # episodes.csv's 'responsible': the cars with a violation
-
-AREA_KEY = np.dtype([("pair", np.int64), ("area", np.int64)])
-
-
-@dataclass(frozen=True, eq=False)
-class AreaRules:
-    """The RULE_* bits and priority of one step in every conflict area of every crossing pair, sorted by ``keys``
-    (AREA_KEY: pair key, area number). A pair is kept as one situation, in its most critical area; when it
-    becomes dangerous in an area, what held in that area at the step before t_b decides who owes what (rss.md
-    §5), not what held in the area that was most critical then."""
-
-    keys: np.ndarray
-    rules: np.ndarray  # int8
-    priority: np.ndarray  # int8
-    by_signal: np.ndarray  # bool: the signals decided the priority
-
-
-@dataclass(frozen=True, eq=False)
-class OwedResponses:
-    """What one vehicle owes in its open episodes (one row per episode), for a proper-response guard."""
-
-    t_b: np.ndarray  # [s] danger threshold time
-    must_brake: np.ndarray  # bool: longitudinal braking owed after ρ
-    brake_correct: np.ndarray  # bool: the braking owed is b_corr (opposite direction, correct lane)
-    front_limited: np.ndarray  # bool: must not brake harder than b_max
-    owed_lat: np.ndarray  # bool: lateral response owed (not while the cars are in line: neither side is towards)
-    other_is_left: np.ndarray  # bool: the other car is on this car's left (as they are now)
-    u0: np.ndarray  # [m/s] this car's lateral speed towards the other at t_b
-    other_id: np.ndarray  # the other car's id
-    same_direction: np.ndarray  # bool: one car follows the other (same direction or merge)
-    lat_settled: np.ndarray  # bool: this car's speed towards the other has been ≤ 0 from ρ on (it must stay there)
-    # bool: the lateral response is owed in the episode, in line now or not (judged at any step where the cars
-    # are apart: ``in_line``); None: as ``owed_lat``
-    lat_duty: np.ndarray | None = None
-    # bool: the braking is owed from t_b, without a response time (moved off from standing, moving_off.py); None:
-    # never
-    no_response_time: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        if self.lat_duty is None:
-            object.__setattr__(self, "lat_duty", self.owed_lat)
-        if self.no_response_time is None:
-            object.__setattr__(self, "no_response_time", np.zeros(len(self.t_b), dtype=bool))
-
-    def __len__(self) -> int:
-        return int(self.t_b.shape[0])
-
-    def without_lon_duty(self) -> frozenset[str]:
-        """The cars going this car's way that it owes no longitudinal braking in an open episode: the episode did
-        not start longitudinally for it (e.g. the other car cut in), so closing the gap is not its duty."""
-        return frozenset(self.other_id[self.same_direction & ~self.must_brake].tolist())
-
-
-@dataclass(frozen=True, eq=False)
-class JudgedStep:
-    """The owed responses' bounds of one step, per open episode (by ``serial``) and car (column 0: a, 1: b); NaN
-    where a bound does not apply (not owed, the step at t_b, a car stopped after ρ, the pair not evaluated)."""
-
-    serial: np.ndarray  # int64, one per open episode
-    accel: np.ndarray  # [m/s²] the car's acceleration
-    accel_max: np.ndarray  # [m/s²] a ≤ this: a_acc during ρ, −b_min (−b_corr) after it
-    accel_min: np.ndarray  # [m/s²] a ≥ this: −b_max (the front car)
-    lat_speed: np.ndarray  # [m/s] the car's lateral speed towards the other
-    lat_speed_max: np.ndarray  # [m/s] the lateral response's envelope
-
-
-def in_line(lat_offset: Any, mu_a: Any, mu_b: Any) -> np.ndarray:
-    """Whether two cars whose centres are ``lat_offset`` [m] apart across the road are in line: within μ/2 (the
-    larger μ [m] of the two), where neither side is towards the other and the lateral response is not judged
-    (rss.md, "The lateral duty keeps away from the side the other car is on now"). NaN: False."""
-    return np.asarray(lat_offset) <= 0.5 * np.maximum(mu_a, mu_b)
-
-
-def lateral_speed_bound(u0: Any, tau: Any, rho: Any, a_lat: Any, b_lat: Any) -> np.ndarray:
-    """The lateral response's bound on a car's speed towards the other [m/s], ``tau`` s after the trigger at
-    which it was ``u0`` (rss.md §5): it may grow at a_lat during ρ, must then fall at b_lat to ≤ 0 and stay there
-    (never asked below 0)."""
-    return np.maximum(u0 + a_lat * np.minimum(tau, rho) - b_lat * np.maximum(tau - rho, 0.0), 0.0)
+from .situations import FIRST_INTERSECTION_CODE, SITUATION_CODES
+from .step_input import StepInput
+from .threshold import StepBefore, new_episodes
 
 
 class ResponsibilityTracker:
@@ -156,11 +47,7 @@ class ResponsibilityTracker:
         self._episode_violations: dict[int, list[tuple[int, dict]]] = {}
         self._continued: dict[int, tuple[dict, EpisodeParts]] = {}  # pair key → the episode its open one continues
         self._open = OpenEpisodes()
-        self._prev_keys = np.zeros(0, dtype=np.int64)
-        self._prev_rules = np.zeros(0, dtype=np.int8)
-        self._prev_priority = np.zeros(0, dtype=np.int8)
-        self._prev_by_signal = np.zeros(0, dtype=bool)
-        self._prev_areas: AreaRules | None = None
+        self._before = StepBefore()  # what was safe at the step before: it decides who owes what at t_b
         self._episode_count: dict[int, int] = {}
         self._collided = np.zeros(0, dtype=np.int64)  # pairs whose episode a collision closed, until safe again
         self._last_time: float | None = None
@@ -204,11 +91,7 @@ class ResponsibilityTracker:
         new = dangerous & ~find_sorted(self._open.keys, keys)[0] & ~find_sorted(self._collided, keys)[0]
         if np.any(new):
             self._open_new(step, keys[new], sit_rows[new])
-        self._prev_keys = keys
-        self._prev_areas = step.areas
-        self._prev_rules = sit.safe_rules[order]
-        self._prev_priority = sit.priority[order] if sit.priority is not None else np.zeros(len(keys), dtype=np.int8)
-        self._prev_by_signal = sit.kind[order] == KIND_SIGNAL
+        self._before.remember(step, keys, order)
         self._standing.update(step.uids, step.speed)
         self._last_time = step.time
 
@@ -226,17 +109,7 @@ class ResponsibilityTracker:
 
     def owed_by(self, vehicle_id: str) -> OwedResponses:
         """The responses ``vehicle_id`` owes in its open episodes."""
-        e = self._open
-        as_a, as_b = e.a_id == vehicle_id, e.b_id == vehicle_id
-        idx = np.flatnonzero(as_a | as_b)
-        car = np.where(as_a[idx], 0, 1)
-        return OwedResponses(
-            t_b=e.t_b[idx], must_brake=e.must_brake[idx, car], brake_correct=e.brake_correct[idx, car],
-            front_limited=e.front_limited[idx, car], owed_lat=e.owed_lat[idx] & ~e.in_line[idx],
-            other_is_left=np.where(car == 0, ~e.a_left[idx], e.a_left[idx]), u0=e.u0[idx, car],
-            other_id=np.where(car == 0, e.b_id[idx], e.a_id[idx]),
-            same_direction=np.isin(e.kind[idx], SAME_DIRECTION_CODES), lat_settled=e.lat_settled[idx, car],
-            lat_duty=e.owed_lat[idx], no_response_time=e.moved_off[idx, car])
+        return owed_in(self._open, vehicle_id)
 
     def collide(self, pair_keys: list[int], time: float, collider: str, victim: str) -> list[dict]:
         """Close the open episodes of ``pair_keys`` (one pair's road and junction keys) with a collision; returns
@@ -283,37 +156,9 @@ class ResponsibilityTracker:
         return f"{e.a_id[i]}|{e.b_id[i]}|{tag}{self._episode_count[int(e.keys[i])]}"
 
     def _open_new(self, step: StepInput, keys: np.ndarray, rows: np.ndarray) -> None:
-        sit = step.situations
-        a, b = sit.a[rows], sit.b[rows]
-        # What was safe just before t_b decides the owed response (rss.md §5).
-        seen, pos = find_sorted(self._prev_keys, keys)
-        prev_rules = self._prev_rules[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
-        prev_priority = self._prev_priority[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=np.int8)
-        prev_by_signal = self._prev_by_signal[pos] if len(self._prev_keys) else np.zeros(len(keys), dtype=bool)
-        if self._prev_areas is not None and len(self._prev_areas.keys) and step.area_number is not None:
-            # A crossing pair: what held in the area it is dangerous in now.
-            area_keys = np.empty(len(keys), dtype=AREA_KEY)
-            area_keys["pair"], area_keys["area"] = keys, step.area_number[rows]
-            found, at = find_sorted(self._prev_areas.keys, area_keys)
-            found &= step.area_number[rows] >= 0
-            seen = seen | found
-            prev_rules = np.where(found, self._prev_areas.rules[at], prev_rules)
-            prev_priority = np.where(found, self._prev_areas.priority[at], prev_priority)
-            prev_by_signal = np.where(found, self._prev_areas.by_signal[at], prev_by_signal)
-        appeared = ~seen & (step.new_vehicle[a] | step.new_vehicle[b])
-        duties = duties_at_threshold(sit, rows, prev_rules, prev_priority, seen, appeared, prev_by_signal)
-        # Lateral speed towards the other car at t_b: the left car's is −v_lat, the right car's +v_lat.
-        u0 = np.column_stack([np.where(sit.a_is_left[rows], -sit.v_lat_a[rows], sit.v_lat_a[rows]),
-                              np.where(sit.a_is_left[rows], sit.v_lat_b[rows], -sit.v_lat_b[rows])])
+        """Open the episodes of the pairs ``keys`` (situation ``rows``) that became dangerous now: a new serial
+        each, or the one of the pair's episode that ended within ρ (it goes on)."""
         n = len(keys)
-        # A car that owes braking at a junction and moved off from standing short of the area owes it at once.
-        enter = np.column_stack([sit.enter_a[rows], sit.enter_b[rows]]) if sit.enter_a is not None \
-            else np.full((n, 2), np.nan)
-        moved_off = duties.must_brake & (sit.kind[rows] >= FIRST_INTERSECTION_CODE)[:, None] & \
-            self._standing.moved_off(np.column_stack([step.uids[a], step.uids[b]]),
-                                     np.column_stack([step.vclass[a], step.vclass[b]]), enter,
-                                     np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]),
-                                     step.time - self._last_time if self._last_time is not None else 0.0)
         serials = np.arange(self._next_serial, self._next_serial + n, dtype=np.int64)
         for r, k in enumerate(keys.tolist()):
             held = self._log.resume(k, step.time)
@@ -322,146 +167,22 @@ class ResponsibilityTracker:
                 serials[r] = held[0]["serial"]
             else:
                 self._episode_count[k] = self._episode_count.get(k, 0) + 1
-        fresh = OpenEpisodes(
-            keys=keys.astype(np.int64), serial=serials, a_id=step.ids[a].astype(object),
-            b_id=step.ids[b].astype(object),
-            uids=np.column_stack([step.uids[a], step.uids[b]]),
-            a_class=step.vclass[a].astype(object), b_class=step.vclass[b].astype(object),
-            kind=sit.kind[rows], t_b=np.full(n, step.time), t_last=np.full(n, step.time),
-            window=np.maximum(step.params.response_time[a], step.params.response_time[b]),
-            must_brake=duties.must_brake, moved_off=moved_off, front_limited=duties.front_limited,
-            brake_correct=duties.brake_correct,
-            owed_lat=duties.owed_lat, trigger=duties.trigger, roles=duties.roles, owed=duties.owed,
-            area=sit.area[rows].astype(object) if sit.area is not None else np.full(n, "", dtype=object),
-            a_left=sit.a_is_left[rows], in_line=np.zeros(n, dtype=bool), u0=u0,
-            lat_settled=np.zeros((n, 2), dtype=bool),
-            min_lon_margin=sit.lon_gap[rows] - sit.lon_d_min[rows],
-            min_lat_margin=sit.lat_gap[rows] - sit.lat_d_min[rows],
-            responsible=np.zeros((n, 2), dtype=bool), **_area_progress(
-                sit, rows, np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]),
-                np.column_stack([step.accel[a], step.accel[b]]), _instant_brake(step, np.column_stack([a, b]))),
-            active=np.zeros((n, 2, N_CONSTRAINTS), dtype=bool),
-            v_start=np.zeros((n, 2, N_CONSTRAINTS)), v_last=np.zeros((n, 2, N_CONSTRAINTS)),
-            v_worst=np.zeros((n, 2, N_CONSTRAINTS)), v_bound=np.zeros((n, 2, N_CONSTRAINTS)),
-            v_excess=np.full((n, 2, N_CONSTRAINTS), -np.inf))
+        fresh = new_episodes(step, keys, rows, self._before, self._standing, self._dt(step), serials)
         self._next_serial += n
         merged = OpenEpisodes.concat([self._open, fresh]) if len(self._open) else fresh
         self._open = merged.take(np.argsort(merged.keys, kind="stable"))
 
+    def _dt(self, step: StepInput) -> float:
+        """[s] since the step before (0 at the first)."""
+        return step.time - self._last_time if self._last_time is not None else 0.0
+
     def _check_compliance(self, step: StepInput, rows: np.ndarray, candidate: np.ndarray,
                           in_danger: np.ndarray) -> None:
-        """Evaluate every owed constraint for both cars of each open episode at ``step.time`` (both cars are in the
-        snapshot): with the pair's situation where it is a ``candidate`` now (situation ``rows``; elsewhere ``rows``
-        is ignored); elsewhere (far apart now, e.g. one has left the junction) only the longitudinal constraints,
-        on the cars' own accelerations and speeds: the pair's lateral speeds are not known there. ``in_danger``: the
-        pair is still dangerous (its margins count)."""
-        e, sit, t = self._open, step.situations, step.time
-        if len(sit):
-            e.min_lon_margin = np.where(in_danger, np.minimum(e.min_lon_margin,
-                                                              sit.lon_gap[rows] - sit.lon_d_min[rows]), e.min_lon_margin)
-            e.min_lat_margin = np.where(in_danger, np.minimum(e.min_lat_margin,
-                                                              sit.lat_gap[rows] - sit.lat_d_min[rows]), e.min_lat_margin)
-        e.t_last = np.where(candidate, t, e.t_last)
-        start = e.t_b  # the response starts when the cars can see each other (rule 4)
-        if step.seen_from is not None and len(step.seen_from[0]):
-            seen, at = find_sorted(step.seen_from[0], e.keys)
-            start = np.where(seen, np.maximum(e.t_b, step.seen_from[1][at]), e.t_b)
-        judged = t > start + TIME_EPS
-        by_uid = np.argsort(step.uids)
-        own = by_uid[np.searchsorted(step.uids[by_uid], e.uids)]  # [n, 2] snapshot rows of the cars
-        pair = candidate[:, None]
-        if len(sit):
-            cars = np.where(pair, np.column_stack([sit.a[rows], sit.b[rows]]), own)  # [n, 2] snapshot rows
-            v_lon = np.where(pair, np.column_stack([sit.v_lon_a[rows], sit.v_lon_b[rows]]), step.speed[own])
-            v_lat = np.where(pair, np.column_stack([sit.v_lat_a[rows], sit.v_lat_b[rows]]), 0.0)
-        else:
-            cars, v_lon, v_lat = own, step.speed[own], np.zeros(own.shape)
-        p = step.params
-        accel = step.accel[cars]
-        if len(sit):
-            progress = _area_progress(sit, rows, v_lon, accel, _instant_brake(step, cars))
-            e.entered |= pair & progress["entered"]
-            e.stood_short |= pair & progress["stood_short"]
-            e.stopping = np.where(pair, progress["stopping"], e.stopping)
-        rho = p.response_time[cars]
-        tau = (t - np.minimum(start, t))[:, None]  # 0 while hidden (nothing is judged then)
-        rho_lon = np.where(e.moved_off, 0.0, rho)  # no response time to its own moving off (moving_off.py)
-        in_response = tau <= rho_lon + TIME_EPS
-        # The step that ends ρ inside it (ρ not a multiple of the step): its mean acceleration may be a_acc for
-        # the part before t_b + ρ and must be −b after it, so its bound is the time-weighted mix of the two.
-        dt = t - self._last_time if self._last_time is not None else 0.0
-        before = np.clip((rho_lon - (tau - dt)) / dt, 0.0, 1.0) if dt > 0.0 else np.zeros_like(rho)
-        braker = e.must_brake
-        front = e.front_limited
-        brake_needed = np.where(e.brake_correct, p.lon_brake_min_correct[cars], p.lon_brake_min[cars])
-        moving = v_lon >= STOPPED_SPEED
-
-        actual = np.zeros(cars.shape + (N_CONSTRAINTS,))
-        bound = np.zeros_like(actual)
-        sign = np.array([1.0, 1.0, -1.0, 1.0])  # +1: actual ≤ bound; −1: actual ≥ bound
-        applies = np.zeros(actual.shape, dtype=bool)
-        applies[..., 0] = braker & in_response
-        actual[..., 0], bound[..., 0] = accel, p.lon_accel_max[cars]
-        applies[..., 1] = braker & ~in_response & moving
-        actual[..., 1], bound[..., 1] = accel, before * p.lon_accel_max[cars] - (1.0 - before) * brake_needed
-        applies[..., 2] = front
-        actual[..., 2], bound[..., 2] = accel, -p.lon_brake_max[cars]
-        self._update_lateral_order(sit, rows, candidate, p.lat_fluctuation_margin[cars])
-        left = np.column_stack([e.a_left, ~e.a_left])
-        u = np.where(left, -v_lat, v_lat)
-        beside = pair & ~e.in_line[:, None]
-        applies[..., 3] = e.owed_lat[:, None] & beside
-        actual[..., 3] = u
-        # Once a car's speed towards the other is ≤ 0 from ρ on, it must stay there.
-        bound[..., 3] = np.where(e.lat_settled, 0.0,
-                                 lateral_speed_bound(e.u0, tau, rho, p.lat_accel_max[cars], p.lat_brake_min[cars]))
-        e.lat_settled = e.lat_settled | (judged[:, None] & beside & (tau >= rho - TIME_EPS) & (u <= 0.0))
-        tolerance = np.full(actual.shape, step.accel_tolerance)
-        # The velocity envelope's tolerance: the acceleration tolerance integrated while the envelope changes,
-        # up to when it reaches 0; from then on "stay ≤ 0" does not loosen with time.
-        settles = rho + np.maximum(e.u0 + p.lat_accel_max[cars] * rho, 0.0) / p.lat_brake_min[cars]
-        tolerance[..., 3] = EPS_ACCEL * np.minimum(tau, settles)
-        excess = sign * (actual - bound)
-        violating = applies & judged[:, None, None] & (excess > tolerance)
-        # With joining, a violation that resumes within the car's ρ continues its interval (one row, not one per
-        # step where a coarsely measured acceleration dips back within its bound).
-        self._roll_violations(violating, actual, bound, excess, t, rho if self._log.join else np.zeros_like(rho))
-        shown = np.where(applies & judged[:, None, None], bound, np.nan)
-        self.judged = JudgedStep(e.serial, accel, np.fmin(shown[..., 0], shown[..., 1]), shown[..., 2],
-                                 np.where(pair, u, np.nan), shown[..., 3])
-
-    def _update_lateral_order(self, sit: PairSituations, rows: np.ndarray, candidate: np.ndarray,
-                              mu: np.ndarray) -> None:
-        """Which car is left of the other, as they are now (the side a lateral response keeps away from), and
-        whether they are in line: centres within μ/2 across the road (the larger μ [m] of the two, ``mu`` [n, 2]),
-        where neither side is towards the other (a car that cut in and now drives straight ahead in the other's
-        lane). Kept from the last step seen where the pair is no road situation now."""
-        e = self._open
-        if not len(sit) or sit.lat_offset is None:
-            return
-        offset = np.where(candidate, sit.lat_offset[rows], np.nan)
-        lined_up = in_line(offset, mu[:, 0], mu[:, 1])  # NaN (junctions, not a candidate): False
-        seen = candidate & np.isfinite(offset)
-        e.in_line = np.where(seen, lined_up, e.in_line)
-        e.a_left = np.where(seen & ~lined_up, sit.a_is_left[rows], e.a_left)
-
-    def _roll_violations(self, violating: np.ndarray, actual: np.ndarray, bound: np.ndarray, excess: np.ndarray,
-                         t: float, grace: np.ndarray) -> None:
-        """Start, extend and end the violation intervals [episode, car, constraint]; an interval ends once ``grace``
-        [s] per car has passed since its last violating step."""
-        e = self._open
-        starting = violating & ~e.active
-        e.v_start = np.where(starting, t, e.v_start)
-        worse = violating & (excess > e.v_excess)
-        e.v_worst = np.where(worse, actual, e.v_worst)
-        e.v_bound = np.where(worse, bound, e.v_bound)
-        e.v_excess = np.where(worse, excess, e.v_excess)
-        e.v_last = np.where(violating, t, e.v_last)
-        ended = e.active & ~violating & (t - e.v_last > grace[..., None] + TIME_EPS)
+        """Judge both cars of every open episode at ``step.time`` (:func:`.compliance.judge_step`) and hold the
+        violations that ended as rows of their episodes."""
+        self.judged, ended = judge_step(self._open, step, rows, candidate, in_danger, self._dt(step), self._log.join)
         if np.any(ended):
             self._emit_violations(ended)
-        e.active = violating | (e.active & ~ended)
-        e.responsible |= np.any(violating, axis=2)
 
     def _emit_violations(self, mask: np.ndarray) -> None:
         """The finished violations ``mask`` [episode, car, constraint] as rows of their episodes (written when the
@@ -521,7 +242,6 @@ class ResponsibilityTracker:
         self._open = e.take(np.flatnonzero(~mask))
         return records
 
-
     def _judge_rules_4_5(self, record: dict, parts: EpisodeParts, joinable: bool, window: float, time: float) -> None:
         """Rules 4 and 5's verdicts of a closed (joined, collided) episode (``on_close``): its record's fields, its
         evasive-effort row in place of an earlier part's, and rule 4's unreasonable-speed rows."""
@@ -531,26 +251,3 @@ class ResponsibilityTracker:
         for row in rows:  # rule 4's unreasonable speed makes a car responsible, also for a later part
             if row["constraint"] == OCCLUSION_CONSTRAINT:
                 parts.fixed[0 if row["vehicle_id"] == record["vehicle_a"] else 1] = True
-
-
-def _instant_brake(step: StepInput, cars: np.ndarray) -> np.ndarray:
-    """[m/s²] b_max of the persons among the road users ``cars`` (rows of ``step``), NaN for vehicles."""
-    return np.where(step.vclass[cars] == PERSON_CLASS, step.params.lon_brake_max[cars], np.nan)
-
-
-def _area_progress(sit: PairSituations, rows: np.ndarray, speed: np.ndarray, accel: np.ndarray,
-                   instant_brake: np.ndarray) -> dict[str, np.ndarray]:
-    """[n, 2] per car of the crossing situations ``rows`` (``speed`` [m/s] and ``accel`` [m/s²] per car): its front
-    bumper is in the conflict area or past its start ('entered'), it stands short of it ('stood_short'), it is
-    short of it and stands or brakes hard enough to stop before it ('stopping'); all False on roads. A person
-    (``instant_brake``: its b_max [m/s²], NaN for a vehicle) is also 'stopping' while braking at b_max would stop
-    it before the area: SUMO's persons have no deceleration, they stop within a step where they are to wait."""
-    if sit.enter_a is None:
-        none = np.zeros((len(rows), 2), dtype=bool)
-        return {"entered": none, "stood_short": none, "stopping": none}
-    enter = np.column_stack([sit.enter_a[rows], sit.enter_b[rows]])  # NaN on roads: every comparison False
-    short = enter > 0.0
-    standing = short & (speed < STOPPED_SPEED)
-    can_stop = speed * speed < 2.0 * instant_brake * enter  # NaN (a vehicle): False
-    return {"entered": enter < 0.0, "stood_short": standing,
-            "stopping": standing | (short & (((accel < 0.0) & (speed * speed < -2.0 * accel * enter)) | can_stop))}

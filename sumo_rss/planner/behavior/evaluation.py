@@ -17,7 +17,8 @@ import numpy as np
 
 from ...angles import cos_sin
 from ...rss import formulas
-from ...rss.responsibility import EPS_ACCEL, lateral_speed_bound
+from ...rss.compliance import lateral_speed_bound
+from ...rss.step_input import EPS_ACCEL
 from ...rss.situations import extent_across
 from ..lanes import CURRENT, LEFT, RIGHT
 from ..road_frame import RoadFrame
