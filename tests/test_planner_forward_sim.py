@@ -590,3 +590,51 @@ def test_the_followed_trajectory_moves_as_fast_as_its_speeds_between_the_simulat
     moved = np.diff(traj.x) / np.diff(traj.t)  # hw0 runs along +x
     np.testing.assert_allclose(moved, 0.5 * (traj.speed[1:] + traj.speed[:-1]), atol=2e-3)
     assert np.ptp(np.diff(traj.speed)) > 0.05  # the speed does change within the samples
+
+
+@pytest.mark.parametrize("max_accel", [1.0, 2.0])
+def test_a_standing_egos_lane_change_starts_at_its_own_acceleration_limit(highway, max_accel):
+    """A standing ego (at a lane's end) whose gap has come, a car at 25 m/s just past it in the left lane and the
+    next one 200 m behind (a standing ego needs d_min(25, 0) = 128.3 m, and 25 m more for the barrier's 1 s):
+    in the lane-change layers it accelerates at its own limit, not at the gap controller's 1 m/s² (epsilon.md
+    §3.5's clip), and so crosses the lane boundary sooner (docs/planner.md, "A standing ego's start")."""
+    _, frame = highway
+    p = RssParams()
+    vehicles = _vehicles([200.0, 235.0, 200.0 - 4.5 - 200.0], [0.0, 3.5, 3.5], [0.0, 25.0, 25.0],
+                         chain=[CURRENT, LEFT, LEFT])
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([10.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, LEFT, LEFT]]), np.array([0.0, 25.0, 25.0]))
+    settings = replace(SimSettings(), ego_idm=replace(SimSettings().ego_idm, accel=max_accel),
+                       ego_limits=replace(SimSettings().ego_limits, max_accel=max_accel))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, settings, p, RssParamArrays.stack([p] * 3))
+    assert sim.valid[0] and sim.barrier_steps[0] == 0
+    start = sim.ego_accel[0, sim.t <= 2.0]  # before the rear car comes within its RSS distance (evasive speed-up)
+    assert max_accel - 0.05 <= float(start.max()) <= max_accel + 1e-9
+    across = float(sim.t[int(np.argmax(sim.d[0, :, 0] > 1.75))])
+    assert across <= (3.6 if max_accel == 1.0 else 3.0)
+
+
+def test_a_held_merge_waits_ready_beside_its_gap_laterally_safe():
+    """On the acceleration lane (it ends, so the change is mandatory) beside a lane-1 car 10 m behind at 25 m/s
+    (RSS-unsafe: the barrier holds the ego), the ego at 15 m/s moves towards lane 1 as far as it stays laterally
+    RSS-safe to that car and out of the lane's band in which the agents see it in their way, ~1.1 m, and no
+    further; before, it kept its lane's centre, ~1.6 s from standstill away from the lateral trigger
+    (lane_change.ready_offset)."""
+    net = RoadNetwork.from_file(NETWORKS / "merge" / "merge.net.xml")
+    frame = RoadFrame.build(lane_chains(net, int(net.lane_indices(["ramp_0"])[0]),
+                                        net.edge_indices(["ramp", "mw_merge", "mw_out"])))
+    s, d, rel = frame.to_frame(np.array([800.0, 785.5]), np.array([-8.75, -5.25]), np.zeros(2))
+    vehicles = Vehicles(s, d, rel, np.array([15.0, 25.0]), np.zeros(2), np.zeros(2), np.full(2, 4.5),
+                        np.full(2, 1.8), np.array([CURRENT, LEFT]))
+    p = RssParams()
+    rollouts = Rollouts(np.full((1, 5), LEFT), np.array([15.0]), np.ones(1), np.zeros(1, bool), 4.2,
+                        np.array([[1, LEFT]]), np.array([0.0, 25.0]))
+    sim = simulate(frame, vehicles, rollouts, (1.0,) * 5, replace(SimSettings(), ready_wait=True), p,
+                   RssParamArrays.stack([p] * 2))
+    across = sim.d[0, :, 0] - frame.centre_d(CURRENT, sim.s[0, :, 0])
+    assert sim.barrier_steps[0] > 0 and 0.8 < across.max() < 1.3
+    onset = _first_lateral_unsafe(sim, 1, p)  # once the car is by and far enough ahead the change goes on
+    if onset is not None:
+        v_e, v_a = sim.speed[0, onset, 0], sim.speed[0, onset, 1]
+        gap = sim.s[0, onset, 1] - sim.s[0, onset, 0] - 4.5
+        assert gap > 0.0 and gap >= formulas.lon_safe_distance_same_dir(v_e, v_a, p, p)

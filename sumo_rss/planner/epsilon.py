@@ -192,10 +192,15 @@ class EpsilonPlanner:
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
         settings = cfg.sim if np.isinf(seek) else replace(cfg.sim, evasive_speed_up=False)
+        # Where the ego's lane ends (an acceleration lane, not one that leaves the route) a held change waits ready.
+        own_lanes = frame.chains.lanes[frame.chains.chain_of[CURRENT]]
+        ready = mandatory is not None and bool(self.network.lane_ends[own_lanes[-1]])
+        settings = replace(settings, ready_wait=ready)
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, settings, ego_params, params, cfg.sim_step,
                        s_front + stop.distance, cut_in_gap, area, owed_due)
         self._seeking = mandatory if mandatory is not None and navigation.change_held(
-            mandatory, policies, policy_of, sim, float(vehicles.d[0])) else None
+            mandatory, policies, policy_of, sim, float(vehicles.d[0]),
+            np.inf if ready else navigation.STILL_IN_LANE_M) else None
         t_sim = time.perf_counter()
         nav = self.manager.navigation(now)
         if mandatory is not None and nav.recommended is None:

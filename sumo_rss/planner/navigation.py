@@ -83,11 +83,14 @@ def cut_in_gaps(snapshot: WorldSnapshot, key: KeyVehicles, vehicles: Vehicles, o
     return np.concatenate([[np.inf], np.where(ahead, np.where(holding, gap + DROP_BACK_M, gap), np.inf)])
 
 
-def change_held(direction: Lat, policies: list[Policy], policy_of: np.ndarray, sim: SimResult, offset: float) -> bool:
-    """Whether a lane change towards ``direction`` has not begun (the ego within STILL_IN_LANE_M of its lane's
+def change_held(direction: Lat, policies: list[Policy], policy_of: np.ndarray, sim: SimResult, offset: float,
+                still_in_lane: float = STILL_IN_LANE_M) -> bool:
+    """Whether a lane change towards ``direction`` has not begun (the ego within ``still_in_lane`` [m] of its lane's
     centre, ``offset`` [m]) and no rollout of that direction gets going within the horizon (CHANGE_PROGRESS_M towards
-    the target lane): the virtual barrier holds every one of them (the gap is not RSS-safe)."""
-    if abs(offset) > STILL_IN_LANE_M:
+    the target lane): the virtual barrier holds every one of them (the gap is not RSS-safe). Where the ego's lane ends
+    a held mandatory change waits off its lane's centre, ready beside the gap (:func:`.behavior.lane_change.
+    ready_offset`): it is asked with ``still_in_lane`` = inf, the rollouts' progress alone deciding."""
+    if abs(offset) > still_in_lane:
         return False
     side = 1.0 if direction is Lat.LEFT else -1.0
     mine = np.flatnonzero(np.isin(policy_of, [k for k, p in enumerate(policies) if p.lateral is direction]))

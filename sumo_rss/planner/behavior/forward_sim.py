@@ -48,7 +48,7 @@ class SimSettings:
     agent_radius: float = 1.25
     gap_speed_gain: float = 0.1  # K_v [1/s] of the gap target speed, clipped to [-3, 5] m/s
     track_pos_gain: float = 0.4  # K_s [1/s]
-    track_speed_gain: float = 0.8  # K_v' [1/s], tracking acceleration clipped to ±1 m/s²
+    track_speed_gain: float = 0.8  # K_v' [1/s], tracking acceleration clipped to [-1, ego_limits.max_accel] m/s²
     preferred_blend: float = 0.1
     evasive_accel: float = 2.0  # [m/s²] speed-up into the gap when the gap-rear car is RSS-unsafe (IDM a, limit)
     evasive_headway: float = 0.6  # [s] the ego's IDM T while it speeds up
@@ -59,6 +59,8 @@ class SimSettings:
     commit_time: float = 1.0  # [s] the gap must stay RSS-safe this long at constant speeds before the ego enters it
     rss_following: bool = True  # the ego's IDM headway distance is at least the RSS safe distance to a car ahead
     gap_informed_changes: bool = True  # the ego's lane changes by EPSILON's controller (False: IDM + pure pursuit)
+    # a held change of an ego whose lane ends waits beside its gap ready to go (lane_change.ready_offset)
+    ready_wait: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,10 +232,10 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         settings.evasive_headway, settings.evasive_accel, settings.ego_limits.wheelbase, float(rollouts.backup_brake),
         float(rollouts.ego_speed_limit), float(ego_stop_s), float(vehicles.width[1:].max()) if n > 1 else 0.0,
         junction_area.beyond if junction_area is not None else 0.0, rss_following, settings.gap_informed_changes,
-        junction_area is not None, owed_brake_due is not None)
+        junction_area is not None, owed_brake_due is not None, settings.ready_wait)
     gs = GapSettings(settings.gap_speed_gain, settings.preferred_blend, settings.track_speed_gain,
-                     settings.track_pos_gain, settings.evasive_accel, settings.evasive_extra_speed,
-                     settings.commit_time, settings.evasive_speed_up)
+                     settings.track_pos_gain, settings.ego_limits.max_accel, settings.evasive_accel,
+                     settings.evasive_extra_speed, settings.commit_time, settings.evasive_speed_up)
     f64, i64 = np.float64, np.int64
     vehicle_samples, ego_samples, valid, barrier_steps = run(
         _c(t, f64), _c(layer_end, i64), firsts, parents, inverses, counts, _c(state, f64), _c(vehicles.length, f64),

@@ -22,7 +22,7 @@ from ..lanes import CURRENT, LEFT, RIGHT
 from ..road_frame import GRID_STEP
 from .controllers import BicycleState, IdmParams, VehicleLimits, bicycle_step, idm_speed_command, lookahead, \
     pure_pursuit_steer
-from .lane_change import gap_cars, lane_change_command
+from .lane_change import gap_cars, lane_change_command, ready_offset
 from .leaders import find_leaders, following_distance, occupied_band, stopped_leader
 
 IdmRow = namedtuple("IdmRow", tuple(IdmParams.__dataclass_fields__))
@@ -54,6 +54,7 @@ class KernelSettings(NamedTuple):
     gap_informed_changes: bool
     has_junction: bool
     has_owed: bool
+    ready_wait: bool
 
 
 @kernel
@@ -112,7 +113,7 @@ def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, 
                           centres, cell, gaps, lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap,
                           ego_band, barrier_steps, length, width, idm, v0, limits, pursuit, evasive_max_accel,
                           rss_table, rss_ego_row, front_worst_row, junction_row, backup, slope_grid, held_gap,
-                          owed_due, ks, gs, scratch)
+                          owed_due, end_s, ks, gs, scratch)
         cell, frac = _locate(moved[0], frame_s0, centre.shape[1])
         for g in range(moved.shape[1]):
             for i in range(n):
@@ -236,7 +237,7 @@ def _record(k, recorded, inverse, state, now_chain, lead_gap, lead_speed, free_g
 def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_slope, centres, cell, gaps,
                   lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap, ego_band, barrier_steps, length,
                   width, idm, v0, limits, pursuit, evasive_max_accel, rss_table, rss_ego_row, front_worst_row,
-                  junction_row, backup, slope_grid, held_gap, owed_due, ks, gs, scratch):
+                  junction_row, backup, slope_grid, held_gap, owed_due, end_s, ks, gs, scratch):
     """One step of prefix ``g`` (representative rollout ``rollout``) ending at ``t_end`` [s]: every vehicle's
     commands and its move, into ``moved`` [fields, G, n]. ``scratch`` [4, n]: room for its temporaries."""
     n = length.size
@@ -250,6 +251,7 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
     changing = tracked[g, 0] != now_chain[g, 0] and not backup[rollout] and ks.gap_informed_changes
     hold = evasive = False
     lc_cmd = evasive_v0 = 0.0
+    hold_d = d[0]  # where across a held ego keeps its centre
     if changing:
         for i in range(n):
             slope[i] = slope_grid[tracked[g, 0], cell[g, i]]
@@ -259,6 +261,11 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
                                                           v0[rollout, 0], gs, rss_ego, rss_table, dt)
         # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
         hold = barrier and np.abs(d[0] - centres[tracked[g, 0], g, 0]) >= ego_band[g]
+        if hold and ks.ready_wait and np.isfinite(end_s[now_chain[g, 0]]):  # wait ready beside the gap
+            for i in range(n):
+                scratch[3, i] = heading[i] - slope[i]  # speed_cmd's room, filled only below
+            hold_d = ready_offset(front, rear, d, scratch[3], v, width, centres[tracked[g, 0], g, 0], ego_band[g],
+                                  rss_ego, rss_table)
         evasive = np.isfinite(evasive_v0)
         evasive_v0 = min(evasive_v0, ks.speed_limit)  # into the gap, within the speed limit
     for i in range(n):
@@ -295,7 +302,7 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
         # Each car follows its lane as SUMO moves it along a polyline: where the lane bends in the frame it turns
         # with it at once, and pure pursuit aims along the lane's direction here, correcting only the offset from
         # it (docs/planner.md).
-        target_d = lane_target[i] + ((d[0] - lane_target[0]) if i == 0 and hold else 0.0)
+        target_d = lane_target[i] + ((hold_d - lane_target[0]) if i == 0 and hold else 0.0)
         steer = pure_pursuit_steer(s[i], d[i], heading[i], s[i] + ell[i], target_d, ks.ego_wheelbase)
         # The evasive speed-up may use evasive_accel for this step (§3.6).
         max_accel = evasive_max_accel[i] if evasive else limits[1, i]

@@ -23,6 +23,7 @@ class GapSettings(NamedTuple):
     preferred_blend: float
     track_speed_gain: float
     track_pos_gain: float
+    track_accel: float  # [m/s²] the tracking acceleration's upper clip: the ego's own acceleration limit
     evasive_accel: float
     evasive_extra_speed: float
     commit_time: float
@@ -81,7 +82,7 @@ def lane_change_command(f: int, r: int, has_f: bool, has_r: bool, s: np.ndarray,
                    select(has_f, np.minimum(s_e, s_thr_f), select(has_r, np.maximum(s_e, s_thr_r), s_e)))
     v_des = select(has_f & has_r, select(squeezed, v_e, both_v),
                    select(has_f, np.minimum(v_pref, v_ref_f), select(has_r, np.maximum(v_ref_r, v_pref), v_e)))
-    a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, 1.0)
+    a_track = clamp(st.track_speed_gain * (v_des + st.track_pos_gain * (s_des - s_e) - v_e), -1.0, st.track_accel)
     cmd = np.maximum(v_e + a_track * dt, 0.0)
     # RSS in the two pairs (bumper gaps): the rear gap car behind the ego, the ego behind the front gap car. At
     # constant speeds the safe distances stay the same for commit_time; only the gaps change.
@@ -126,3 +127,33 @@ def laterally_safe(d_e: Any, d_o: Any, u_e: Any, u_o: Any, w_e: Any, w_o: Any, r
     lat_min = formulas.combine_lateral(reach_e, reach_o, rss_ego.lat_fluctuation_margin,
                                        rss_other.lat_fluctuation_margin)
     return formulas.is_safe_distance(lat_gap, lat_min)
+
+
+# [m] kept beyond the lateral RSS distance and the agents' band by an ego that waits beside its gap, ready to go
+READY_MARGIN = 0.2
+
+
+@jitable
+def ready_offset(f: int, r: int, d: np.ndarray, heading: np.ndarray, v: np.ndarray, width: np.ndarray,
+                 target_centre: float, ego_band: float, rss_ego: Any, rss_table: np.ndarray) -> float:
+    """[m] Where across its lane an ego that the barrier holds back waits where its lane ends (its centre's offset in
+    the frame, with ``SimSettings.ready_wait``; ``heading`` [n]: each car's against the target lane [rad]): as far
+    towards its target lane (centre at ``target_centre``) as it stays out of the target lane's band in which
+    the agents see it in their way (``ego_band``, :func:`.leaders.occupied_band`) and laterally RSS-safe, at its
+    present lateral speed, to the gap cars ``f`` and ``r`` (columns, 0: none), each by READY_MARGIN; never further
+    from the target lane than it is. RSS's cut-in rule forbids making an unsafe pair laterally unsafe, not a lateral
+    move that keeps it safe; standing at its lane's centre, a waiting ego needed ~1.6 s from standstill to become
+    laterally unsafe to the target lane's cars (the steer rate, 0.39 rad/s, and the 3 m/s³ jerk), longer than the
+    gaps a standing ego gets (docs/planner.md, "A standing ego's start")."""
+    side = 1.0 if target_centre > d[0] else -1.0
+    limit = target_centre - side * (ego_band + READY_MARGIN)
+    u_e = side * v[0] * np.sin(heading[0])  # towards the target lane
+    for j in (f, r):
+        if j > 0:
+            u_j = -side * v[j] * np.sin(heading[j])  # towards the ego
+            p_j = rss_row(rss_table, j)
+            need = 0.5 * (width[0] + width[j]) + READY_MARGIN + formulas.combine_lateral(
+                formulas.lateral_reach(u_e, rss_ego), formulas.lateral_reach(u_j, p_j),
+                rss_ego.lat_fluctuation_margin, p_j.lat_fluctuation_margin)
+            limit = min(limit, d[j] - need) if side > 0.0 else max(limit, d[j] + need)
+    return d[0] + side * max(side * (limit - d[0]), 0.0)
