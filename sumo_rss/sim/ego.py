@@ -36,6 +36,41 @@ def place(vehicle_id: str, state: TrajectoryState) -> None:
     libsumo.vehicle.setSpeed(vehicle_id, state.speed)
 
 
+class LaneShadows:
+    """Frees the lane a placed ego has left of its leftover shadow. With ``--lanechange.duration`` a car placed by
+    ``moveToXY`` whose lane changes while its body still overlaps the lane it leaves stays an obstacle in that lane:
+    the cars behind there stop behind where it was, or follow it, for as long as it stays in its new lane (SUMO 1.28;
+    docs/planner.md, "Standing at the end of a deceleration lane"). Moving the ego back into that lane by ``moveTo``
+    just before the step's ``moveToXY`` (which puts it where it goes) frees it; done once per change, when the ego's
+    body is inside its new lane with ``SHADOW_CLEARANCE`` to spare (else SUMO would give it a shadow again)."""
+
+    SHADOW_CLEARANCE = 0.1  # [m]
+
+    def __init__(self, vehicle_id: str):
+        self.vehicle_id = vehicle_id
+        self._lane = ""  # the ego's lane at the last placement
+        self._left: str | None = None  # the lane it left with a shadow there, not yet freed
+
+    def before_placing(self) -> None:
+        """Call before each :func:`place` of the ego."""
+        v = self.vehicle_id
+        lane = libsumo.vehicle.getLaneID(v)
+        if not lane or lane.startswith(":"):
+            self._lane = lane
+            return
+        lat, half = libsumo.vehicle.getLateralLanePosition(v), 0.5 * libsumo.vehicle.getWidth(v)
+        edge, index = lane.rsplit("_", 1)
+        if lane != self._lane and self._lane.rsplit("_", 1)[0] == edge:
+            self._left = self._lane  # a change within the edge (SUMO numbers an edge's lanes <edge>_<index>)
+        self._lane = lane
+        if self._left is None or abs(lat) + half > 0.5 * libsumo.lane.getWidth(lane) - self.SHADOW_CLEARANCE:
+            return
+        position = libsumo.vehicle.getLanePosition(v)
+        if position <= libsumo.lane.getLength(self._left):
+            libsumo.vehicle.moveTo(v, self._left, position)
+        self._left = None
+
+
 def release(vehicle_id: str) -> None:
     """Hand ``vehicle_id`` back to SUMO's own models (used when it reaches the end of its route: SUMO lets it
     arrive and removes it, which a vehicle placed by moveToXY never does on its own)."""

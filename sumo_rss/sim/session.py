@@ -139,6 +139,7 @@ class Session:
         self._contacts = ContactTracker()
         self._ego_controlled = False
         self._ego_released = False  # handed back to SUMO at the end of its route, to arrive
+        self._ego_shadows: ego_actuation.LaneShadows | None = None
         self._lane_geometry: dict[str, tuple[float, float, tuple]] = {}  # lane → (offset [m], length [m], shape)
         self._ego_lateral: tuple[str, float, float] | None = None  # (edge, lateral position, speed) last step
         self._ego_speed: float | None = None  # [m/s] at the last step
@@ -392,6 +393,8 @@ class Session:
         if not self._ego_controlled:
             ego_actuation.take_control(self.ego_id)
             self._ego_controlled = True
+            self._ego_shadows = ego_actuation.LaneShadows(self.ego_id)
+        self._ego_shadows.before_placing()
         ego_actuation.place(self.ego_id, state)
 
     def _ego_arriving(self, state: TrajectoryState) -> bool:

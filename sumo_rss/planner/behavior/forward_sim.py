@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 
 from ...rss.params import PARAM_NAMES
-from ..lanes import LEFT
+from ..lanes import CURRENT, LEFT
 from ..road_frame import RoadFrame
+from ..route_lanes import UNREACHABLE
 from .controllers import IdmParams, VehicleLimits
 from .kernel import KernelSettings, run
 from .lane_change import GapSettings
@@ -192,6 +193,17 @@ def prefix_tree(rollouts: Rollouts) -> list[tuple[np.ndarray, np.ndarray, np.nda
     return tree
 
 
+def ego_end_room(frame: RoadFrame, margin: float) -> float:
+    """[m] What the ego keeps before its own lane's end (where it ends or leaves the route) beyond the waiting
+    ``margin``, also while a change is going: ``margin`` per lane change still to make after the next one. A
+    slow ego uses some of the lane in every change; with one waiting margin for three changes it crept to 2 m before
+    the end of highway_exit's ex_decel and had no room for the last (docs/planner.md, "Room for every change")."""
+    total = frame.chains.changes[1]
+    if not np.isfinite(frame.end_s[CURRENT]) or total >= UNREACHABLE:
+        return 0.0
+    return margin * max(total - 1, 0)
+
+
 def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations: tuple[float, ...],
              settings: SimSettings, rss_ego: Any, rss_agents: Any, sim_step: float = 0.2,
              ego_stop_s: float = np.inf, cut_in_gap: np.ndarray | None = None,
@@ -228,7 +240,8 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     state = np.array([vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature],
                      dtype=float)
     ks = KernelSettings(
-        settings.ego_radius, settings.agent_radius, settings.inflation, settings.lane_end_margin, settings.ego_idm.s0,
+        settings.ego_radius, settings.agent_radius, settings.inflation, settings.lane_end_margin,
+        ego_end_room(frame, settings.lane_end_margin), settings.ego_idm.s0,
         settings.evasive_headway, settings.evasive_accel, settings.ego_limits.wheelbase, float(rollouts.backup_brake),
         float(rollouts.ego_speed_limit), float(ego_stop_s), float(vehicles.width[1:].max()) if n > 1 else 0.0,
         junction_area.beyond if junction_area is not None else 0.0, rss_following, settings.gap_informed_changes,

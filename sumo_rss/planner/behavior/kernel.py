@@ -35,12 +35,14 @@ class KernelSettings(NamedTuple):
     """Scalars of one simulation: :class:`.forward_sim.SimSettings`' of the same names, the ego IDM's s0 and its
     wheelbase [m], the rollouts' backup brake [m/s²] and speed limit [m/s], the ego's stop line [m] (inf: none), the
     widest agent [m], the junction area's distance beyond the stop line [m]; and whether there are a junction area
-    and braking the ego owes."""
+    and braking the ego owes. ``ego_end_room`` [m]: what the ego keeps before its own lane's end beyond
+    ``lane_end_margin`` for the lane changes it must make after the next one (:func:`.forward_sim.ego_end_room`)."""
 
     ego_radius: float
     agent_radius: float
     inflation: float
     lane_end_margin: float
+    ego_end_room: float
     ego_s0: float
     evasive_headway: float
     evasive_accel: float
@@ -192,7 +194,8 @@ def _looks(first, layer, ending, tracked, now_chain, ego_chain, state, length, w
 @jitable
 def _standing(looks, now_chain, state, free_gap, free_speed, length, end_s, ks):
     """The leaders with standing obstacles in their place where nearer [looks, G, n]: a lane's end (less the
-    waiting margin) and, for the ego, its stop line; the ego's current-lane leader without the margin (``gap_go``,
+    waiting margin; for the ego in its own lane also less the room of the changes after the next one) and, for the
+    ego, its stop line; the ego's current-lane leader without the waiting margin, but with that room (``gap_go``,
     ``v_go`` [G], once a lane change is going); and the ego's front bumper to its stop line [G] (inf: none)."""
     G, n = now_chain.shape
     s = state[0]
@@ -201,10 +204,12 @@ def _standing(looks, now_chain, state, free_gap, free_speed, length, end_s, ks):
     for g in range(G):
         for m in range(looks.shape[0]):
             for i in range(n):
+                room = ks.ego_end_room if i == 0 and looks[m, g, i] == CURRENT else 0.0
                 lead_gap[m, g, i], lead_speed[m, g, i] = stopped_leader(
-                    end_s[looks[m, g, i]] - ks.lane_end_margin - s[g, i] - 0.5 * length[i], lead_gap[m, g, i],
-                    lead_speed[m, g, i])
-        gap_go[g], v_go[g] = stopped_leader(end_s[now_chain[g, 0]] - 0.0 - s[g, 0] - 0.5 * length[0],
+                    end_s[looks[m, g, i]] - ks.lane_end_margin - room - s[g, i] - 0.5 * length[i],
+                    lead_gap[m, g, i], lead_speed[m, g, i])
+        room = ks.ego_end_room if now_chain[g, 0] == CURRENT else 0.0
+        gap_go[g], v_go[g] = stopped_leader(end_s[now_chain[g, 0]] - room - s[g, 0] - 0.5 * length[0],
                                             free_gap[1, g, 0], free_speed[1, g, 0])
         stop_gap[g] = ks.ego_stop_s - s[g, 0] - 0.5 * length[0]
         if np.isfinite(ks.ego_stop_s):
