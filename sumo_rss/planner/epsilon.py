@@ -191,11 +191,12 @@ class EpsilonPlanner:
         cut_in_gap = navigation.cut_in_gaps(snapshot, key, vehicles, owed, frame, v_ref)
         owed_due = self._owed_braking(snapshot, key, owed, float(ego_params.response_time))
         area = JunctionArea(stop.area_beyond, ego_moving) if np.isfinite(stop.distance + stop.area_beyond) else None
-        settings = cfg.sim if np.isinf(seek) else replace(cfg.sim, evasive_speed_up=False)
-        # Where the ego's lane ends (an acceleration lane, not one that leaves the route) a held change waits ready.
+        # Where the ego's lane ends (an acceleration lane, not one that leaves the route) a held change waits ready;
+        # a seeking change has no evasive speed-up.
         own_lanes = frame.chains.lanes[frame.chains.chain_of[CURRENT]]
         ready = mandatory is not None and bool(self.network.lane_ends[own_lanes[-1]])
-        settings = replace(settings, ready_wait=ready)
+        settings = replace(cfg.sim, evasive_speed_up=cfg.sim.evasive_speed_up and bool(np.isinf(seek)),
+                           ready_wait=ready)
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, settings, ego_params, params, cfg.sim_step,
                        s_front + stop.distance, cut_in_gap, area, owed_due)
         self._seeking = mandatory if mandatory is not None and navigation.change_held(

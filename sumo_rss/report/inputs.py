@@ -12,8 +12,7 @@ import pandas as pd
 from ..errors import SumoRssError, shown
 from ..rss.auditor import COLLISION_COLUMNS
 from ..rss.episode_states import PAIR_STATE_COLUMNS
-from ..rss.records import EPISODE_COLUMNS, OCCLUSION_COLUMNS, RULE5_COLUMNS, VIOLATION_COLUMNS
-from ..rss.records import RESPONSIBLE_VALUES
+from ..rss.records import EPISODE_COLUMNS, OCCLUSION_COLUMNS, RESPONSIBLE_VALUES, RULE5_COLUMNS, VIOLATION_COLUMNS
 
 RUN_KEYS = ["run_id", "scenario", "variant", "seed"]  # the first columns of every concatenated batch CSV
 COLUMNS = {  # the columns of each batch CSV (rule 5's, appended later, are not required: older batches still read)

@@ -59,7 +59,7 @@ class LaneShadows:
             self._lane = lane
             return
         lat, half = libsumo.vehicle.getLateralLanePosition(v), 0.5 * libsumo.vehicle.getWidth(v)
-        edge, index = lane.rsplit("_", 1)
+        edge = lane.rsplit("_", 1)[0]
         if lane != self._lane and self._lane.rsplit("_", 1)[0] == edge:
             self._left = self._lane  # a change within the edge (SUMO numbers an edge's lanes <edge>_<index>)
         self._lane = lane
