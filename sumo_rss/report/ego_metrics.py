@@ -14,12 +14,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..batch.runner import param_resolver
 from ..road.network import RoadNetwork
-from ..scenario import ScenarioSpec, load_scenario
+from ..rss.auditor import ParamResolver
+from ..rss.formulas import lon_safe_distance_same_dir
+from ..rss.params import RssParams
+from ..scenario import EGO_TYPE, ScenarioSpec, VehicleTypeSpec, load_scenario
+from ..sim.snapshot import EGO_CLASS
 
 SETTLED_S = 20.0  # [s] the settled mean speed starts this long after the ego's insertion
-LEADER_RANGE = 150.0  # [m] free flow: no car ahead in the ego's lane this near (bumper to bumper)
-COMFORT_BRAKE = 1.67  # [m/s²] free flow: no lane end or lower speed limit within v²/(2·this) ahead
+LEADER_RANGE = 150.0  # [m] free flow: no car ahead in the ego's lane this near (bumper to bumper) ...
+COMFORT_BRAKE = 1.67  # [m/s²] ... nor a slower one within RSS reach (docstring); no lane end or lower speed limit
+# within v²/(2·this) ahead
+BLINKER_RIGHT, BLINKER_LEFT = 1, 2  # SUMO's signal bits (the FCD's ``signals``)
 FREE_SPEED_SHARE = 0.99  # in free flow the ego holds this share of min(desired speed, speed limit)
 STEADY_ACCEL = -0.05  # [m/s²] before it first gets there in a free stretch, it may not slow down more than this
 
@@ -93,31 +100,57 @@ def _merge_delay(t: np.ndarray, lanes: np.ndarray, network: RoadNetwork) -> floa
 
 def free_flow_shortfalls(run_dir: Path, network: RoadNetwork | None = None) -> list[tuple[float, float, float]]:
     """The steps of a run (with FCD) in which the ego was in free flow and did not hold its speed: (time [s], speed,
-    target [m/s]). Free flow: no other car's rear within LEADER_RANGE ahead of the ego's front bumper in its lane
-    along its route, and no lane end or lower speed limit on its lane within its comfortable stopping distance
-    v²/(2·COMFORT_BRAKE). Target: min(desired speed, the lane's speed limit). In each stretch of free-flow steps the
-    ego must not slow down (beyond STEADY_ACCEL) until it first reaches FREE_SPEED_SHARE of the target, and must stay
-    there from then on. For networks whose junctions have no conflicting links (highways): a junction ahead is not
-    looked for."""
+    target [m/s]). Free flow: no leader, and no lane end or lower speed limit on its lane within its comfortable
+    stopping distance v²/(2·COMFORT_BRAKE). Target: min(desired speed, the lane's speed limit). A leader is a car
+    whose rear is ahead of the ego's front bumper in its lane along its route (bumper to bumper gap g ≥ 0) with
+    g < LEADER_RANGE, or, if slower than u = max(v, target), with g < RSS's safe distance d_min(u, v_lead) +
+    (u − v_lead)²/(2·COMFORT_BRAKE) (the distance from which an ego at u braking comfortably just arrives at the
+    car's speed at the safe distance: at 33 m/s behind a 27 m/s car 156 + 11 m, more than LEADER_RANGE; read at u,
+    not v, so that an ego that has begun to slow for the car still has it as its leader); or a car in a
+    neighbouring lane, beside or ahead within LEADER_RANGE, signalling towards the ego's lane (a cut-in). In each stretch of
+    free-flow steps the ego must not slow down (beyond STEADY_ACCEL) until it first reaches FREE_SPEED_SHARE of
+    the target, and must stay there from then on. For networks whose junctions have no conflicting links
+    (highways): a junction ahead is not looked for."""
     run_dir = Path(run_dir)
     spec = load_scenario(run_dir / "scenario.toml")
     network = network if network is not None else RoadNetwork.from_file(spec.net_file)
     offsets = _route_offsets(network, spec.ego.route)
-    lengths = {vt.id: vt.length for vt in spec.demand.vtypes}
+    types = {vt.id: vt for vt in spec.demand.vtypes}
+    resolver = param_resolver(spec)
+    ego_params = resolver.get(EGO_CLASS, EGO_TYPE)
     rows = []  # (time, speed, target, free)
     for time, ego, others in _fcd_steps(run_dir / "fcd.xml", spec.ego.id):
         lane = int(network.lane_indices([ego["lane"]])[0])
         at = _route_position(network, offsets, lane, float(ego["pos"]))
-        ahead = [(_route_position(network, offsets, k, float(o["pos"])) - lengths[o["type"]] - at)
-                 for k, o in ((int(network.lane_indices([o["lane"]])[0]), o) for o in others)
-                 if _same_lane_index(network, k, lane)]
         speed = float(ego["speed"])
         target = min(spec.ego.desired_speed, float(network.lane_speed[lane]))
+        led = any(_leads(network, offsets, types, resolver, (ego_params, spec.ego.vehicle.length), lane, at,
+                         max(speed, target), o) for o in others)
         reach = speed * speed / (2.0 * COMFORT_BRAKE)
-        free = not any(0.0 <= gap < LEADER_RANGE for gap in ahead) and \
-            _clear_ahead(network, lane, float(ego["pos"]), reach, target, spec.ego.route)
+        free = not led and _clear_ahead(network, lane, float(ego["pos"]), reach, target, spec.ego.route)
         rows.append((time, speed, target, free))
     return _shortfalls(rows)
+
+
+def _leads(network: RoadNetwork, offsets: dict[int, float], types: dict[str, VehicleTypeSpec],
+           resolver: ParamResolver, ego: tuple[RssParams, float], lane: int, at: float, speed: float,
+           other: dict) -> bool:
+    """Whether ``other`` (an FCD vehicle) is a leader of an ego (its RSS parameters and length [m]) at ``speed``
+    [m/s] whose front bumper is ``at`` m along its route on ``lane`` (:func:`free_flow_shortfalls`)."""
+    ego_params, ego_length = ego
+    vtype = types[other["type"]]
+    k = int(network.lane_indices([other["lane"]])[0])
+    gap = _route_position(network, offsets, k, float(other["pos"])) - vtype.length - at
+    side = int(network.lane_index[k]) - int(network.lane_index[lane])
+    if side == 0:
+        v_lead = float(other["speed"])
+        if v_lead >= speed:
+            return 0.0 <= gap < LEADER_RANGE
+        d_min = float(lon_safe_distance_same_dir(speed, v_lead, ego_params, resolver.get(vtype.vclass, vtype.id)))
+        return 0.0 <= gap < max(LEADER_RANGE, d_min + (speed - v_lead) ** 2 / (2.0 * COMFORT_BRAKE))
+    towards = BLINKER_RIGHT if side == 1 else BLINKER_LEFT if side == -1 else 0
+    beside_or_ahead = -ego_length < gap + vtype.length and gap < LEADER_RANGE
+    return bool(int(other.get("signals", "0")) & towards) and beside_or_ahead
 
 
 def _shortfalls(rows: list[tuple[float, float, float, bool]]) -> list[tuple[float, float, float]]:
