@@ -74,6 +74,7 @@ class EgoDriver:
                  "lane_changes_completed": self.planner.manager.lane_changes_completed,
                  "lane_changes_called_off": self.planner.manager.lane_changes_called_off,
                  "gap_seek_cycles": self.planner.stats.gap_seek_cycles,
+                 "overtake_seek_cycles": self.planner.stats.overtake_seek_cycles,
                  "guard": self.guard.counts.as_dict(),
                  "intention_net_beliefs": self.planner.stats.learned_beliefs,
                  "stop_line_cycles": {k or "none": v for k, v in sorted(self.planner.stats.stop_lines.items())},

@@ -33,12 +33,12 @@ from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import TARGET_CHAIN, Navigation, evaluate
 from .behavior.forward_sim import JunctionArea, Rollouts, SimResult, SimSettings, Vehicles, simulate
 from .behavior.intention import rule_belief
-from .behavior.key_vehicles import KeyVehicles, key_vehicles
+from .behavior.key_vehicles import SEARCH_RADIUS, KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
 from .behavior.precheck import intention_matters
 from .intention.features import network_branches
 from .junction_rules import Crossing, stop_line
-from . import navigation
+from . import gap_seek, navigation
 from .frames import PlanningFrames
 from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
@@ -120,6 +120,7 @@ class PlannerStats:
     learned_beliefs: int = 0  # agent intentions given by the intention network (summed over cycles)
     stop_lines: dict[str, int] = field(default_factory=dict)  # cycles per stop-line reason ('' = none)
     gap_seek_cycles: int = 0  # cycles in which a held mandatory change sought its gap (navigation.seek_speed)
+    overtake_seek_cycles: int = 0  # cycles in which a held discretionary change sought its gap (gap_seek)
     cycle_times: list[float] = field(default_factory=list)
 
 
@@ -138,6 +139,7 @@ class EpsilonPlanner:
         self.frames = PlanningFrames(network)
         self._curvature = 0.0
         self._seeking: Lat | None = None  # the held mandatory change of the cycle before (navigation.change_held)
+        self._overtaking: Lat | None = None  # the held discretionary change of the cycle before, kept (gap_seek)
         self.junctions = JunctionModel.from_file(network.path, network)
         self.routes = RouteTable(network)
         self.belief = _learned_belief(network, config.output_step * config.replan_every) \
@@ -165,7 +167,12 @@ class EpsilonPlanner:
         seek = navigation.seek_speed(vehicles, mandatory) if mandatory is not None and mandatory is self._seeking \
             else np.inf
         self.stats.gap_seek_cycles += int(np.isfinite(seek))
-        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek)
+        # A discretionary change held in the cycle before is kept while a gap lines up in time (gap_seek), the ego
+        # slowing where only that makes one line up.
+        line_up = self._line_up(snapshot, ego, frame, all_params, now, self._overtaking)
+        self.stats.overtake_seek_cycles += int(line_up is not None)
+        overtake_cap = line_up if line_up is not None and line_up < v_ego else np.inf
+        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek, overtake_cap)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
@@ -195,7 +202,8 @@ class EpsilonPlanner:
         # a seeking change has no evasive speed-up.
         own_lanes = frame.chains.lanes[frame.chains.chain_of[CURRENT]]
         ready = mandatory is not None and bool(self.network.lane_ends[own_lanes[-1]])
-        settings = replace(cfg.sim, evasive_speed_up=cfg.sim.evasive_speed_up and bool(np.isinf(seek)),
+        settings = replace(cfg.sim, evasive_speed_up=cfg.sim.evasive_speed_up and bool(np.isinf(seek) and
+                                                                                np.isinf(overtake_cap)),
                            ready_wait=ready)
         sim = simulate(frame, vehicles, rollouts, policies[0].durations, settings, ego_params, params, cfg.sim_step,
                        s_front + stop.distance, cut_in_gap, area, owed_due)
@@ -217,8 +225,15 @@ class EpsilonPlanner:
                           cfg.sim.ego_idm.headway if cfg.sim.rss_following else None,
                           None if cut_in_gap is None else np.isfinite(cut_in_gap[1:]))
         n_real = len(policies)
-        if navigation.change_stuck(self.manager.context, now, policies, policy_of, sim, float(vehicles.d[0])):
-            self.manager.call_off()
+        ctx = self.manager.context
+        self._overtaking = None
+        if navigation.change_stuck(ctx, now, policies, policy_of, sim, float(vehicles.d[0])):
+            if line_up is None:
+                line_up = self._line_up(snapshot, ego, frame, all_params, now, ctx.direction)
+            if line_up is None:
+                self.manager.call_off()
+            else:
+                self._overtaking = ctx.direction
         cost = np.where(ev.valid, ev.cost, np.inf)
         original = int(np.argmin(cost[:n_real])) if np.any(ev.valid[:n_real]) else None
         chosen = self.manager.select(policies, ev.cost[:n_real], ev.valid[:n_real], now)
@@ -248,6 +263,21 @@ class EpsilonPlanner:
                           {"scene": t_scene - clock, "setup": t_setup - t_scene, "simulate": t_sim - t_setup,
                            "evaluate": t_behaviour - t_sim, "motion": done - t_behaviour, "total": done - clock},
                           len(vehicles) - 1, len(scenarios.weights), backup)
+
+    def _line_up(self, snapshot: WorldSnapshot, ego: int, frame: RoadFrame, all_params: RssParamArrays, now: float,
+                 direction: Lat | None) -> float | None:
+        """[m/s] :func:`.gap_seek.line_up_speed` for the discretionary lane-change context towards ``direction``
+        before it expires (None: no such context, or no gap lines up in time), over every car seen within the key
+        vehicles' search radius behind the ego (the gap the ego waits for may be beyond the rear reach that makes a
+        car key)."""
+        ctx = self.manager.context
+        if direction is None or ctx is None or ctx.mandatory or ctx.direction is not direction:
+            return None
+        seen = key_vehicles(snapshot, ego, frame, np.full(len(snapshot.ids), SEARCH_RADIUS))
+        vehicles, params = self._vehicles(snapshot, ego, frame, seen, all_params)
+        within = ctx.operation_time + self.manager.settings.outdated_after - now
+        return gap_seek.line_up_speed(vehicles, params, direction, within, navigation.SEEK_SLOWER,
+                                      self.config.sim.commit_time, SEARCH_RADIUS)
 
     # -----------------------------------------------------------------------------------------------------
     def frame_for(self, snapshot: WorldSnapshot, ego: int) -> RoadFrame:
