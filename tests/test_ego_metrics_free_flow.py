@@ -8,12 +8,15 @@ car at 27 m/s: v_ρ = 36.5 m/s, D = 33 + 1.75 + 36.5²/8 = 201.28 m, d_min = 201
 """
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
 import pytest
 
+from sumo_rss.batch.runner import param_resolver
 from sumo_rss.report.ego_metrics import free_flow_shortfalls
+from sumo_rss.scenario import EGO_TYPE, load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 EGO_SPEEDS = (32.9, 32.5, 32.2)  # [m/s] 0.99 x 33 = 32.67 reached at the first step, then lost: two shortfall steps
@@ -21,11 +24,16 @@ EGO_POS = 100.0  # [m] along hw0_0 at the first step
 
 
 def _run_dir(tmp_path: Path, other: str) -> Path:
-    """A run folder with the shipped highway_sparse scenario and a three-step FCD: the ego on hw0_0 slowing from
-    32.9 m/s and ``other`` (a vehicle element's attributes without id and type) beside it each step."""
+    """A run folder with the shipped highway_sparse scenario, its RSS parameters and a three-step FCD: the ego on
+    hw0_0 slowing from 32.9 m/s and ``other`` (a vehicle element's attributes without id and type) beside it each
+    step."""
     run = tmp_path / "run"
     run.mkdir(parents=True)
     shutil.copy(REPO / "scenarios" / "highway_sparse.toml", run / "scenario.toml")
+    resolver = param_resolver(load_scenario(run / "scenario.toml"))  # rss_params.json as a run writes it
+    for vclass, vtype in (("ego", EGO_TYPE), ("background", "car")):
+        resolver.get(vclass, vtype)
+    (run / "rss_params.json").write_text(json.dumps(resolver.resolved()), encoding="utf-8")
     steps, pos = [], EGO_POS
     for k, speed in enumerate(EGO_SPEEDS):
         steps.append(f'<timestep time="{20.0 + 0.1 * k:.2f}">'

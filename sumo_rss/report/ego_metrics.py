@@ -14,13 +14,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..batch.runner import param_resolver
 from ..road.network import RoadNetwork
-from ..rss.auditor import ParamResolver
+from ..rss.auditor import PARAMS_FILE
 from ..rss.formulas import lon_safe_distance_same_dir
-from ..rss.params import RssParams
+from ..rss.params import PARAM_NAMES, RssParams
 from ..scenario import EGO_TYPE, ScenarioSpec, VehicleTypeSpec, load_scenario
-from ..sim.snapshot import EGO_CLASS
 
 SETTLED_S = 20.0  # [s] the settled mean speed starts this long after the ego's insertion
 LEADER_RANGE = 150.0  # [m] free flow: no car ahead in the ego's lane this near (bumper to bumper) ...
@@ -53,6 +51,13 @@ class EgoRunMetrics:
 
 def _trace(run_dir: Path) -> pd.DataFrame:
     return pd.read_csv(run_dir / "ego_trace.csv", keep_default_na=False)
+
+
+def run_rss_params(run_dir: Path) -> dict[str, RssParams]:
+    """The RSS parameters a run was judged with (its rss_params.json), keyed 'class/vType' as there ('ego/ego_type',
+    'background/car', ...)."""
+    table = json.loads((Path(run_dir) / PARAMS_FILE).read_text(encoding="utf-8"))
+    return {key: RssParams(**{name: row[name] for name in PARAM_NAMES}) for key, row in table.items()}
 
 
 def ego_run_metrics(run_dir: Path, network: RoadNetwork | None = None) -> EgoRunMetrics:
@@ -126,15 +131,15 @@ def free_flow_shortfalls(run_dir: Path, network: RoadNetwork | None = None) -> l
     network = network if network is not None else RoadNetwork.from_file(spec.net_file)
     offsets = _route_offsets(network, spec.ego.route)
     types = {vt.id: vt for vt in spec.demand.vtypes}
-    resolver = param_resolver(spec)
-    ego_params = resolver.get(EGO_CLASS, EGO_TYPE)
+    params = run_rss_params(run_dir)
+    ego_params = params[f"ego/{EGO_TYPE}"]
     rows = []  # (time, speed, target, free)
     for time, ego, others in _fcd_steps(run_dir / "fcd.xml", spec.ego.id):
         lane = int(network.lane_indices([ego["lane"]])[0])
         at = _route_position(network, offsets, lane, float(ego["pos"]))
         speed = float(ego["speed"])
         target = min(spec.ego.desired_speed, float(network.lane_speed[lane]))
-        led = any(_leads(network, offsets, types, resolver, (ego_params, spec.ego.vehicle.length), lane, at,
+        led = any(_leads(network, offsets, types, params, (ego_params, spec.ego.vehicle.length), lane, at,
                          max(speed, target), o) for o in others)
         reach = speed * speed / (2.0 * COMFORT_BRAKE)
         free = not led and _clear_ahead(network, lane, float(ego["pos"]), reach, target, spec.ego.route)
@@ -143,10 +148,11 @@ def free_flow_shortfalls(run_dir: Path, network: RoadNetwork | None = None) -> l
 
 
 def _leads(network: RoadNetwork, offsets: dict[int, float], types: dict[str, VehicleTypeSpec],
-           resolver: ParamResolver, ego: tuple[RssParams, float], lane: int, at: float, speed: float,
+           params: dict[str, RssParams], ego: tuple[RssParams, float], lane: int, at: float, speed: float,
            other: dict) -> bool:
     """Whether ``other`` (an FCD vehicle) is a leader of an ego (its RSS parameters and length [m]) at ``speed``
-    [m/s] whose front bumper is ``at`` m along its route on ``lane`` (:func:`free_flow_shortfalls`)."""
+    [m/s] whose front bumper is ``at`` m along its route on ``lane`` (:func:`free_flow_shortfalls`; ``params``:
+    :func:`run_rss_params`)."""
     ego_params, ego_length = ego
     vtype = types[other["type"]]
     k = int(network.lane_indices([other["lane"]])[0])
@@ -156,7 +162,7 @@ def _leads(network: RoadNetwork, offsets: dict[int, float], types: dict[str, Veh
         v_lead = float(other["speed"])
         if v_lead >= speed:
             return 0.0 <= gap < LEADER_RANGE
-        d_min = float(lon_safe_distance_same_dir(speed, v_lead, ego_params, resolver.get(vtype.vclass, vtype.id)))
+        d_min = float(lon_safe_distance_same_dir(speed, v_lead, ego_params, params[f"background/{vtype.id}"]))
         return 0.0 <= gap < max(LEADER_RANGE, d_min + (speed - v_lead) ** 2 / (2.0 * COMFORT_BRAKE))
     towards = BLINKER_RIGHT if side == 1 else BLINKER_LEFT if side == -1 else 0
     beside_or_ahead = -ego_length < gap + vtype.length and gap < LEADER_RANGE
@@ -206,10 +212,6 @@ def _route_position(network: RoadNetwork, offsets: dict[int, float], lane: int, 
         return offsets[edge] + pos
     into = int(network.edge_exit[edge])
     return offsets[into] - float(network.lane_length[lane]) + pos if into in offsets else -np.inf
-
-
-def _same_lane_index(network: RoadNetwork, a: int, b: int) -> bool:
-    return int(network.lane_index[a]) == int(network.lane_index[b])
 
 
 def _clear_ahead(network: RoadNetwork, lane: int, pos: float, reach: float, target: float,

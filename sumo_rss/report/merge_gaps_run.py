@@ -5,7 +5,6 @@ ego. Units: s, m, m/s, m/s².
 """
 from __future__ import annotations
 
-import json
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -18,7 +17,7 @@ from ..errors import SumoRssError
 from ..road.network import RoadNetwork
 from ..rss.params import PARAM_NAMES, RssParamArrays, RssParams
 from ..scenario import EGO_TYPE, ScenarioSpec, load_scenario
-from .ego_metrics import merge_span
+from .ego_metrics import merge_span, run_rss_params
 from .merge_gaps import EarliestMerge, EgoLimits, GapSearch, TargetLane, earliest_merge
 
 CHAIN_REACH = 400.0  # [m] target-lane cars this far before the acceleration lane's start or beyond its end are kept
@@ -96,9 +95,9 @@ def merge_gap_report(run_dir: Path, search: GapSearch = GapSearch()) -> MergeGap
     target = int(network.lane_left[acc])
     scale = float(network.lane_length[target] / network.lane_length[acc])
     ego_front = trace["lane_pos_m"].to_numpy(float)[first] * scale
-    rss = json.loads((run_dir / "rss_params.json").read_text(encoding="utf-8"))
+    rss = run_rss_params(run_dir)
     lane, ids, reaction = _read_target_lane(run_dir / "fcd.xml", network, chain, spec, rss, (trace, acc, scale))
-    ego_params = RssParams(**rss[f"ego/{EGO_TYPE}"])
+    ego_params = rss[f"ego/{EGO_TYPE}"]
     limits = EgoLimits.planner(float(network.lane_speed[acc]))
     earliest = earliest_merge(lane, float(t[first]), ego_front, float(trace["speed_ms"].to_numpy(float)[first]),
                               spec.ego.vehicle.length, ego_params, limits, search)
@@ -141,7 +140,7 @@ class _Reactions:
         return len({car for car, _ in inside}), min((a for _, a in inside), default=0.0)
 
 
-def _read_target_lane(fcd: Path, network: RoadNetwork, chain: dict[int, float], spec: ScenarioSpec, rss: dict,
+def _read_target_lane(fcd: Path, network: RoadNetwork, chain: dict[int, float], spec: ScenarioSpec, rss: dict[str, RssParams],
                       ego: tuple[pd.DataFrame, int, float]) -> tuple[TargetLane, list[list[str]], _Reactions]:
     """The target lane's cars per FCD step, their ids per step (in the slots' order) and their reactions to the ego
     while it is on the acceleration lane; ``ego`` = (its trace, the lane, the target lane's length over the
@@ -180,7 +179,7 @@ def _read_target_lane(fcd: Path, network: RoadNetwork, chain: dict[int, float], 
         for j, (f, v, vtype, _, _) in enumerate(step):
             front[i, j], speed[i, j], length[i, j] = f, v, vtypes[vtype].length
             for name in PARAM_NAMES:
-                table[name][i, j] = rss[f"background/{vtype}"][name]
+                table[name][i, j] = getattr(rss[f"background/{vtype}"], name)
     params = RssParamArrays(*(table[name] for name in PARAM_NAMES))
     lane = TargetLane(np.array(times), front, speed, length, params, end)
     return lane, [[car[3] for car in step] for step in rows], _Reactions(events)
