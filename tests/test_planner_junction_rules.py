@@ -1,6 +1,8 @@
 """Stop lines before junctions (red, yellow, yield) on the real intersection networks."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -169,7 +171,9 @@ def test_the_yield_timing_counts_each_cars_own_conflict_area():
     the ego would have cleared *it*. The oncoming straight car's area ends 15.4 m along the ego's left turn; a car
     waiting at red far back on W_in_1 (no priority) has an area ending later along the turn. It used to set the
     clearing time for every car: the ego yielded to an oncoming car 135-145 m out that arrives after it has
-    cleared that car's own area."""
+    cleared that car's own area. (140 m is now held by the RSS check along the crossing instead: the oncoming car
+    would come within its RSS distance behind the ego on their virtual line before the ego has left their area; it
+    goes from 150 m.)"""
     net, junctions = _model("intersection_tls")
     phase = {"C": "GGgrrrGGgrrr"}
     ego = ("ego", "S_in_1", 2.0, 0.0, ("S_in", "W_out"))
@@ -181,6 +185,59 @@ def test_the_yield_timing_counts_each_cars_own_conflict_area():
         return stop_line(snap, 0, net, junctions, RouteTable(net), ParamResolver("ad_rss").arrays(snap), None,
                          as_driven).reason
 
-    for oncoming_m, reason in ((130.0, "yield"), (140.0, "")):
+    for oncoming_m, reason in ((130.0, "yield"), (140.0, "yield"), (150.0, "")):
         oncoming = ("n", "N_in_0", oncoming_m, 13.0, ("N_in", "S_out"))
         assert stop([ego, oncoming]) == stop([ego, oncoming, waiting]) == reason
+
+
+def test_the_planners_stopping_distance_ramps_the_braking_at_its_jerk():
+    """From 4.1 m/s accelerating at 2.6 m/s², braking at the ego's 5 m/s³ up to 5 m/s² takes 1.52 s to reach full
+    braking (6.30 m covered, 2.27 m/s left) and 0.52 m more: 6.83 m, against 1.05 m at b_max 8 m/s² at once."""
+    crossing = Crossing()
+    assert crossing.stopping_distance(4.1, 2.6) == pytest.approx(6.827, abs=1e-3)
+    assert crossing.stopping_distance(10.0, -5.0) == pytest.approx(10.0)  # already braking fully: v²/(2·5)
+    assert crossing.stopping_distance(0.0, 0.0) == 0.0
+    assert crossing.stopping_distance(0.5, 1.0) < 0.5  # it stands before the braking is full
+
+
+def test_a_start_under_way_goes_on_where_stopping_would_stand_it_inside_the_junction():
+    """intersection_priority: the ego crosses from the minor road and a major-road car (14 m/s) is 35-60 m from the
+    crossing: it arrives after the ego would have cleared their area, but within the 2 s margin. Standing 3 m
+    back, or still 30 m out at 8 m/s, the ego yields at its line. Moving off at 4 m/s 2 m before the line it cannot
+    stop before the line as the planner brakes (3.4 m), yet could at b_max (1.0 m): it used to be told to stop,
+    and stood in the junction (seed 17 with a = 2.6 m/s²); now it goes on. It still stops for a car that would
+    reach the area before it has cleared it (30 m out)."""
+    net, junctions = _model("intersection_priority")
+
+    def reason(ego_before: float, v: float, major_m: float, accel: float = 0.0) -> str:
+        snap = _snapshot(net, [("ego", "S_in_0", ego_before, v, ("S_in", "J_N")),
+                               ("major", "E_in_0", major_m, 14.0, ("E_in", "J_W"))])
+        return _stop(replace(snap, accel=np.array([accel, 0.0])), net, junctions).reason
+
+    for major_m in (35.0, 45.0, 60.0):
+        assert reason(3.0, 0.0, major_m) == reason(30.0, 8.0, major_m) == "yield"
+        assert reason(2.0, 4.0, major_m) == "committed"
+    assert reason(2.0, 3.0, 60.0, 2.0) == "committed"  # moving off slower but accelerating: 4.0 m to stop
+    assert reason(2.0, 4.0, 30.0) == "yield"  # it would be in the area with the car: stopping is the lesser harm
+    assert reason(2.0, 4.0, 100.0) == ""  # late enough even with the margin
+    # Slow enough, or braking already, to stop before the line: it yields as before.
+    assert reason(2.0, 1.5, 45.0) == reason(2.0, 4.0, 45.0, -5.0) == "yield"
+
+
+def test_the_ego_does_not_start_a_crossing_that_would_turn_rss_unsafe_on_its_way():
+    """intersection_priority, ``hold_standing`` (the scenario's): the ego standing 2 m before its line, a major-road
+    car at 14 m/s. 90 m out (6.4 s) it would arrive over 2 s after the ego has cleared their area, but before that,
+    once the ego can no longer stop before the area (RSS's worst case), the car comes within its RSS distance
+    behind the ego on their virtual line: the ego would owe braking inside the junction (seed 17 with a = 2.6 m/s²
+    stood there to the end of the run). It waits; 100 m out the crossing stays safe and it goes."""
+    net, junctions = _model("intersection_priority")
+    resolver = ParamResolver("ad_rss", hold_standing=True)
+    moving = RssParamArrays.stack([resolver.get("ego", "car")])
+
+    def reason(major_m: float) -> str:
+        snap = _snapshot(net, [("ego", "S_in_0", 2.0, 0.0, ("S_in", "J_N")),
+                               ("major", "E_in_0", major_m, 14.0, ("E_in", "J_W"))])
+        return stop_line(snap, 0, net, junctions, RouteTable(net), resolver.arrays(snap), moving, Crossing(2.0)).reason
+
+    assert reason(80.0) == reason(90.0) == "yield"
+    assert reason(100.0) == ""

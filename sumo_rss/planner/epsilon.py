@@ -190,8 +190,9 @@ class EpsilonPlanner:
         params = replace(params, lon_accel_max=np.concatenate([ego_moving.lon_accel_max, params.lon_accel_max[1:]]))
         ego_params = _row(params, 0)
         s_front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
-        crossing = Crossing(cfg.sim.ego_limits.max_accel, lambda start, length: frame.chains.speed_cap(
-            CURRENT, s_front + start, length, cfg.desired_speed))  # as the rollouts drive it through the junction
+        limits = cfg.sim.ego_limits  # as the rollouts drive it through the junction, and brake it
+        crossing = Crossing(limits.max_accel, lambda start, length: frame.chains.speed_cap(
+            CURRENT, s_front + start, length, cfg.desired_speed), limits.hard_brake, limits.brake_jerk)
         stop = stop_line(snapshot, ego, self.network, self.junctions, self.routes, all_params, ego_moving, crossing)
         self.stats.stop_lines[stop.reason] = self.stats.stop_lines.get(stop.reason, 0) + 1
         t_setup = time.perf_counter()
