@@ -31,7 +31,8 @@ from .behavior.controllers import IdmParams, VehicleLimits
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import TARGET_CHAIN, Navigation, evaluate
-from .behavior.forward_sim import JunctionArea, Rollouts, SimResult, SimSettings, Vehicles, simulate
+from .behavior.forward_sim import JunctionArea, ReferenceProfile, Rollouts, SimResult, SimSettings, Vehicles, \
+    simulate
 from .behavior.intention import rule_belief
 from .behavior.key_vehicles import SEARCH_RADIUS, KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
@@ -43,7 +44,7 @@ from .frames import PlanningFrames
 from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
-from .road_frame import RoadFrame
+from .road_frame import GRID_STEP, RoadFrame
 
 if TYPE_CHECKING:
     from .intention.belief import LearnedBelief
@@ -172,7 +173,8 @@ class EpsilonPlanner:
         line_up = self._line_up(snapshot, ego, frame, all_params, now, self._overtaking)
         self.stats.overtake_seek_cycles += int(line_up is not None)
         overtake_cap = line_up if line_up is not None and line_up < v_ego else np.inf
-        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek, overtake_cap)
+        speed_cap = min(seek, overtake_cap)  # the rollouts' desired speeds are capped by it and the reference
+        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), speed_cap)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
@@ -182,7 +184,7 @@ class EpsilonPlanner:
         scenarios = branch_scenarios(probs, branched, cfg.scenarios_k) if cfg.scenarios_k > 1 else \
             branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
-                                                        snapshot, ego, horizon)
+                                                        speed_cap, snapshot, ego, horizon)
         # The ego is planned as moving: with hold_standing a standing ego has a_acc = 0 now, which makes 0 m the
         # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
         # (else it creeps up in pulses, each a new danger episode).
@@ -368,15 +370,18 @@ class EpsilonPlanner:
         return probs
 
     def _rollouts(self, policies: list[Policy], scenarios, key: KeyVehicles, vehicles: Vehicles,
-                  frame: RoadFrame, v_ego: float, v_ref: float, snapshot: WorldSnapshot, ego: int,
+                  frame: RoadFrame, v_ego: float, v_ref: float, speed_cap: float, snapshot: WorldSnapshot, ego: int,
                   horizon: float) -> tuple[Rollouts, np.ndarray, np.ndarray]:
+        """The rollouts of every (policy x scenario). EPSILON's ego holds its policy's speed within ``speed_cap``
+        [m/s] (a gap seek's) and the reference speed along its own path (:func:`_reference_profile`); MPDM's
+        holds one speed command near ``v_ref`` [m/s], the reference speed now."""
         cfg = self.config
         P, K = len(policies) + 1, len(scenarios.weights)
         policy_of = np.repeat(np.arange(P), K)
         scenario_of = np.tile(np.arange(K), P)
         base = float(np.floor(v_ego))
-        lon_v0 = {Lon.ACCELERATE: min(base + SPEED_STEP_A, v_ref), Lon.MAINTAIN: min(base, v_ref),
-                  Lon.DECELERATE: min(max(base - SPEED_STEP_D, 0.0), v_ref)}
+        lon_v0 = {Lon.ACCELERATE: min(base + SPEED_STEP_A, speed_cap), Lon.MAINTAIN: min(base, speed_cap),
+                  Lon.DECELERATE: min(max(base - SPEED_STEP_D, 0.0), speed_cap)}
         ego_chain = np.array([[_target(lat) for lat in p.lats] for p in policies] +
                              [[CURRENT] * cfg.layers], dtype=int)[policy_of]
         mpdm_v0 = float(np.clip(v_ref, v_ego - MPDM_SPEED_STEP, v_ego + MPDM_SPEED_STEP))
@@ -396,7 +401,9 @@ class EpsilonPlanner:
         ego_params = self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))
         backup_brake = min(ego_params.lon_brake_min + 0.2, cfg.sim.ego_limits.hard_brake)
         limit = frame.chains.speed_limit(CURRENT, float(vehicles.s[0]), _speed_reach(v_ego))
-        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit)
+        reference = _reference_profile(frame, vehicles, v_ego, cfg.desired_speed, horizon) \
+            if cfg.mode == "epsilon" else None
+        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit, reference)
         return rollouts, policy_of, scenarios.weights[scenario_of]
 
     @staticmethod
@@ -457,6 +464,28 @@ def _reference_speed(frame: RoadFrame, vehicles: Vehicles, v_ego: float, desired
     front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
     return min(frame.chains.reference_speed(CURRENT, front, desired),
                frame.chains.reference_speed(CURRENT, front + REFERENCE_PREVIEW * v_ego, desired))
+
+
+def _reference_profile(frame: RoadFrame, vehicles: Vehicles, v_ego: float, desired: float, horizon: float
+                       ) -> ReferenceProfile:
+    """The reference speed along each chain (:meth:`.lanes.LaneChains.reference_profile`) for the ego's front
+    bumper over its reach in the ``horizon`` [s] at max(``v_ego``, ``desired``) [m/s] and the preview beyond it, on
+    a GRID_STEP grid from the bumper, read as :func:`_reference_speed` reads it (the kernel's
+    :func:`.behavior.kernel._reference_at`), and from the lanes' limits alone (the ego's speed cap). A rise of the limit (a faster lane's start) counts one grid step late,
+    so that no point between two grid points reads above the slower lane's limit. A chain that does not exist gets
+    the current chain's profile (never read)."""
+    front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
+    reach = max(v_ego, desired) * (horizon + REFERENCE_PREVIEW) + 2.0 * GRID_STEP
+    grid = front + GRID_STEP * np.arange(-1, int(np.ceil(reach / GRID_STEP)) + 1)
+    speed, limit = np.empty((3, grid.size - 1)), np.empty((3, grid.size - 1))
+    for which in (CURRENT, RIGHT, LEFT):
+        if not frame.chains.exists(which):
+            speed[which], limit[which] = speed[CURRENT], limit[CURRENT]
+            continue
+        for out, bends in ((speed, True), (limit, False)):
+            profile = frame.chains.reference_profile(which, grid, desired, bends=bends)
+            out[which] = np.minimum(profile[1:], profile[:-1])
+    return ReferenceProfile(front, GRID_STEP, speed, limit, REFERENCE_PREVIEW)
 
 
 def _speed_reach(v: float) -> float:
