@@ -8,7 +8,7 @@ import pytest
 
 from conftest import NETWORKS
 from sumo_rss.planner.behavior.forward_sim import ReferenceProfile, Rollouts, Vehicles, simulate
-from sumo_rss.planner.epsilon import EGO_SIM, _reference_profile, _reference_speed
+from sumo_rss.planner.epsilon import EGO_SIM, REFERENCE_PREVIEW, _reference_speed
 from sumo_rss.planner.lanes import CURRENT, lane_chains
 from sumo_rss.planner.road_frame import RoadFrame
 from sumo_rss.road.network import RoadNetwork
@@ -35,6 +35,12 @@ def _maintain(v0: float, reference: ReferenceProfile | None) -> Rollouts:
                     np.full((1, 1), CURRENT), np.zeros(1), np.inf, reference)
 
 
+def _profile(frame: RoadFrame, vehicles: Vehicles, desired: float) -> ReferenceProfile:
+    """The planner's profile for the lone ego (as ``EpsilonPlanner._rollouts`` builds it)."""
+    reach = max(float(vehicles.speed[0]), desired) * (HORIZON + REFERENCE_PREVIEW)
+    return ReferenceProfile.along(frame.chains, float(vehicles.s[0]) + 2.25, reach, desired, REFERENCE_PREVIEW)
+
+
 def _run(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts):
     return simulate(frame, vehicles, rollouts, (1.0,) * 5, EGO_SIM, RssParams(), RssParamArrays.stack([RssParams()]))
 
@@ -58,7 +64,7 @@ def test_the_ego_keeps_a_lower_limit_ahead_where_one_desired_speed_for_the_horiz
     vehicles = _ego(240.0, 13.89)
     v_ref = _reference_speed(frame, vehicles, 13.89, 13.89)
     assert v_ref == pytest.approx(12.8, abs=0.1)
-    reference = _reference_profile(frame, vehicles, 13.89, 13.89, HORIZON)
+    reference = _profile(frame, vehicles, 13.89)
     for profile, limit in ((reference, JUNCTION_LIMIT + 0.05), (None, None)):
         sim = _run(frame, vehicles, _maintain(v_ref, profile))
         front = sim.s[0, :, 0] + 2.25
@@ -75,7 +81,7 @@ def test_a_constant_limit_road_drives_as_without_the_profile():
     """On hw0 (33.33 m/s, no bend below it) the profile is the desired speed everywhere: the same rollouts."""
     frame = _frame("highway", "hw0_1", ["hw0", "hw1", "hw2"])
     vehicles = _ego(100.0, 25.0)
-    reference = _reference_profile(frame, vehicles, 25.0, 30.0, HORIZON)
+    reference = _profile(frame, vehicles, 30.0)
     assert np.all(reference.speed == 30.0) and np.all(reference.limit == 30.0)
     with_profile, without = (_run(frame, vehicles, _maintain(28.0, r)) for r in (reference, None))
     for name in ("s", "d", "heading", "speed", "ego_accel"):

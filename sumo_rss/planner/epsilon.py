@@ -44,7 +44,7 @@ from .frames import PlanningFrames
 from .lanes import CURRENT, LEFT, RIGHT, lanes_consistent_with
 from .motion.frenet_plan import FrenetPlan, from_samples
 from .motion.ssc import MotionInput, MotionLayer, MotionSettings
-from .road_frame import GRID_STEP, RoadFrame
+from .road_frame import RoadFrame
 
 if TYPE_CHECKING:
     from .intention.belief import LearnedBelief
@@ -373,7 +373,7 @@ class EpsilonPlanner:
                   frame: RoadFrame, v_ego: float, v_ref: float, speed_cap: float, snapshot: WorldSnapshot, ego: int,
                   horizon: float) -> tuple[Rollouts, np.ndarray, np.ndarray]:
         """The rollouts of every (policy x scenario). EPSILON's ego holds its policy's speed within ``speed_cap``
-        [m/s] (a gap seek's) and the reference speed along its own path (:func:`_reference_profile`); MPDM's
+        [m/s] (a gap seek's) and the reference speed along its own path (:meth:`ReferenceProfile.along`); MPDM's
         holds one speed command near ``v_ref`` [m/s], the reference speed now."""
         cfg = self.config
         P, K = len(policies) + 1, len(scenarios.weights)
@@ -401,7 +401,9 @@ class EpsilonPlanner:
         ego_params = self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))
         backup_brake = min(ego_params.lon_brake_min + 0.2, cfg.sim.ego_limits.hard_brake)
         limit = frame.chains.speed_limit(CURRENT, float(vehicles.s[0]), _speed_reach(v_ego))
-        reference = _reference_profile(frame, vehicles, v_ego, cfg.desired_speed, horizon) \
+        front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
+        reach = max(v_ego, cfg.desired_speed) * (horizon + REFERENCE_PREVIEW)  # [m] the bumper's, and the preview's
+        reference = ReferenceProfile.along(frame.chains, front, reach, cfg.desired_speed, REFERENCE_PREVIEW) \
             if cfg.mode == "epsilon" else None
         rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit, reference)
         return rollouts, policy_of, scenarios.weights[scenario_of]
@@ -464,28 +466,6 @@ def _reference_speed(frame: RoadFrame, vehicles: Vehicles, v_ego: float, desired
     front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
     return min(frame.chains.reference_speed(CURRENT, front, desired),
                frame.chains.reference_speed(CURRENT, front + REFERENCE_PREVIEW * v_ego, desired))
-
-
-def _reference_profile(frame: RoadFrame, vehicles: Vehicles, v_ego: float, desired: float, horizon: float
-                       ) -> ReferenceProfile:
-    """The reference speed along each chain (:meth:`.lanes.LaneChains.reference_profile`) for the ego's front
-    bumper over its reach in the ``horizon`` [s] at max(``v_ego``, ``desired``) [m/s] and the preview beyond it, on
-    a GRID_STEP grid from the bumper, read as :func:`_reference_speed` reads it (the kernel's
-    :func:`.behavior.kernel._reference_at`), and from the lanes' limits alone (the ego's speed cap). A rise of the limit (a faster lane's start) counts one grid step late,
-    so that no point between two grid points reads above the slower lane's limit. A chain that does not exist gets
-    the current chain's profile (never read)."""
-    front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
-    reach = max(v_ego, desired) * (horizon + REFERENCE_PREVIEW) + 2.0 * GRID_STEP
-    grid = front + GRID_STEP * np.arange(-1, int(np.ceil(reach / GRID_STEP)) + 1)
-    speed, limit = np.empty((3, grid.size - 1)), np.empty((3, grid.size - 1))
-    for which in (CURRENT, RIGHT, LEFT):
-        if not frame.chains.exists(which):
-            speed[which], limit[which] = speed[CURRENT], limit[CURRENT]
-            continue
-        for out, bends in ((speed, True), (limit, False)):
-            profile = frame.chains.reference_profile(which, grid, desired, bends=bends)
-            out[which] = np.minimum(profile[1:], profile[:-1])
-    return ReferenceProfile(front, GRID_STEP, speed, limit, REFERENCE_PREVIEW)
 
 
 def _speed_reach(v: float) -> float:

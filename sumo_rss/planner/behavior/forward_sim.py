@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from ...rss.params import PARAM_NAMES
-from ..lanes import CURRENT, LEFT
-from ..road_frame import RoadFrame
+from ..lanes import CURRENT, LEFT, RIGHT, LaneChains
+from ..road_frame import GRID_STEP, RoadFrame
 from ..route_lanes import UNREACHABLE
 from .controllers import IdmParams, VehicleLimits
 from .kernel import KernelSettings, run
@@ -103,6 +103,25 @@ class ReferenceProfile:
                 raise ValueError("a reference profile needs finite speeds [3, m >= 2]")
         if self.limit.shape != self.speed.shape or self.step <= 0.0:
             raise ValueError("a reference profile's two speeds share one grid of positive step")
+
+    @classmethod
+    def along(cls, chains: LaneChains, front: float, reach: float, desired: float, preview: float
+              ) -> ReferenceProfile:
+        """The profile of ``chains`` (:meth:`.lanes.LaneChains.reference_profile`, at most ``desired`` [m/s]) for
+        the ego's front bumper from ``front`` [m] over ``reach`` [m] (the horizon's and the preview's), on a
+        GRID_STEP grid, read ``preview`` [s] ahead too. A rise of a limit (a faster lane's start) counts one grid
+        step late, so that no point between two grid points reads above the slower lane's limit. A chain that does
+        not exist gets the current chain's profile (never read)."""
+        grid = front + GRID_STEP * np.arange(-1, int(np.ceil((reach + 2.0 * GRID_STEP) / GRID_STEP)) + 1)
+        speed, limit = np.empty((3, grid.size - 1)), np.empty((3, grid.size - 1))
+        for which in (CURRENT, RIGHT, LEFT):
+            if not chains.exists(which):
+                speed[which], limit[which] = speed[CURRENT], limit[CURRENT]
+                continue
+            for out, bends in ((speed, True), (limit, False)):
+                profile = chains.reference_profile(which, grid, desired, bends=bends)
+                out[which] = np.minimum(profile[1:], profile[:-1])
+        return cls(front, GRID_STEP, speed, limit, preview)
 
 
 @dataclass(frozen=True, eq=False)

@@ -78,8 +78,8 @@ def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, 
     [R]. Per rollout and vehicle: ``idm`` [fields, R, n], ``v0`` [R, n]; per vehicle: ``limits`` [fields, n],
     ``pursuit`` [3, n] (gain, min, max), ``rss_table`` [n, fields]. ``ks``: :class:`KernelSettings`, ``gs``:
     :class:`~.lane_change.GapSettings`; ``reference`` / ``reference_limit`` [3, m]: the ego's reference speed and
-    its speed limits' envelope by chain on their grid. (The phases of a step are separate functions: numba's compile time grows
-    faster than linearly with a function's size.)"""
+    its speed limits' envelope by chain on their grid. (The phases of a step are separate functions: numba's
+    compile time grows faster than linearly with a function's size.)"""
     n_steps, n, R = t.size - 1, length.size, ego_chain.shape[0]
     vehicle_out = np.empty((n_steps + 1, 5, R, n))
     ego_out = np.full((n_steps + 1, 6, R), np.inf)
