@@ -31,7 +31,8 @@ from .behavior.controllers import IdmParams, VehicleLimits
 from .behavior.dcp_tree import Lat, Lon, Policy, valid_policies
 from .behavior.cost_weights import CostWeights
 from .behavior.evaluation import TARGET_CHAIN, Navigation, evaluate
-from .behavior.forward_sim import JunctionArea, Rollouts, SimResult, SimSettings, Vehicles, simulate
+from .behavior.forward_sim import JunctionArea, ReferenceProfile, Rollouts, SimResult, SimSettings, Vehicles, \
+    simulate
 from .behavior.intention import rule_belief
 from .behavior.key_vehicles import SEARCH_RADIUS, KeyVehicles, key_vehicles
 from .behavior.manager import Manager, ManagerSettings
@@ -172,7 +173,8 @@ class EpsilonPlanner:
         line_up = self._line_up(snapshot, ego, frame, all_params, now, self._overtaking)
         self.stats.overtake_seek_cycles += int(line_up is not None)
         overtake_cap = line_up if line_up is not None and line_up < v_ego else np.inf
-        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), seek, overtake_cap)
+        speed_cap = min(seek, overtake_cap)  # the rollouts' desired speeds are capped by it and the reference
+        v_ref = min(_reference_speed(frame, vehicles, v_ego, cfg.desired_speed), speed_cap)
         t_scene = time.perf_counter()
 
         policies = self._policies(now, frame, lane, navigation.held_sides(owed))
@@ -182,7 +184,7 @@ class EpsilonPlanner:
         scenarios = branch_scenarios(probs, branched, cfg.scenarios_k) if cfg.scenarios_k > 1 else \
             branch_scenarios(probs, np.zeros(len(probs), dtype=bool), 1)
         rollouts, policy_of, weight_of = self._rollouts(policies, scenarios, key, vehicles, frame, v_ego, v_ref,
-                                                        snapshot, ego, horizon)
+                                                        speed_cap, snapshot, ego, horizon)
         # The ego is planned as moving: with hold_standing a standing ego has a_acc = 0 now, which makes 0 m the
         # RSS distance to a stopped car ahead, but every rollout that moves it must keep the moving distance
         # (else it creeps up in pulses, each a new danger episode).
@@ -369,15 +371,18 @@ class EpsilonPlanner:
         return probs
 
     def _rollouts(self, policies: list[Policy], scenarios, key: KeyVehicles, vehicles: Vehicles,
-                  frame: RoadFrame, v_ego: float, v_ref: float, snapshot: WorldSnapshot, ego: int,
+                  frame: RoadFrame, v_ego: float, v_ref: float, speed_cap: float, snapshot: WorldSnapshot, ego: int,
                   horizon: float) -> tuple[Rollouts, np.ndarray, np.ndarray]:
+        """The rollouts of every (policy x scenario). EPSILON's ego holds its policy's speed within ``speed_cap``
+        [m/s] (a gap seek's) and the reference speed along its own path (:meth:`ReferenceProfile.along`); MPDM's
+        holds one speed command near ``v_ref`` [m/s], the reference speed now."""
         cfg = self.config
         P, K = len(policies) + 1, len(scenarios.weights)
         policy_of = np.repeat(np.arange(P), K)
         scenario_of = np.tile(np.arange(K), P)
         base = float(np.floor(v_ego))
-        lon_v0 = {Lon.ACCELERATE: min(base + SPEED_STEP_A, v_ref), Lon.MAINTAIN: min(base, v_ref),
-                  Lon.DECELERATE: min(max(base - SPEED_STEP_D, 0.0), v_ref)}
+        lon_v0 = {Lon.ACCELERATE: min(base + SPEED_STEP_A, speed_cap), Lon.MAINTAIN: min(base, speed_cap),
+                  Lon.DECELERATE: min(max(base - SPEED_STEP_D, 0.0), speed_cap)}
         ego_chain = np.array([[_target(lat) for lat in p.lats] for p in policies] +
                              [[CURRENT] * cfg.layers], dtype=int)[policy_of]
         mpdm_v0 = float(np.clip(v_ref, v_ego - MPDM_SPEED_STEP, v_ego + MPDM_SPEED_STEP))
@@ -397,7 +402,11 @@ class EpsilonPlanner:
         ego_params = self.params.get(str(snapshot.vclass[ego]), str(snapshot.vtype[ego]))
         backup_brake = min(ego_params.lon_brake_min + 0.2, cfg.sim.ego_limits.hard_brake)
         limit = frame.chains.speed_limit(CURRENT, float(vehicles.s[0]), _speed_reach(v_ego))
-        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit)
+        front = float(vehicles.s[0]) + 0.5 * float(vehicles.length[0])
+        reach = max(v_ego, cfg.desired_speed) * (horizon + REFERENCE_PREVIEW)  # [m] the bumper's, and the preview's
+        reference = ReferenceProfile.along(frame.chains, front, reach, cfg.desired_speed, REFERENCE_PREVIEW) \
+            if cfg.mode == "epsilon" else None
+        rollouts = Rollouts(ego_chain, v0, scale, policy_of == P - 1, backup_brake, chains, agent_v0, limit, reference)
         return rollouts, policy_of, scenarios.weights[scenario_of]
 
     @staticmethod

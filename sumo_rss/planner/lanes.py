@@ -73,18 +73,27 @@ class LaneChains:
         """The speed [m/s] from which the ego at ``s_from`` on chain ``which`` can still slow down at ``brake``
         [m/s²] to every lower speed ahead: a bend's √(a_lat/|κ|) at the bend, a lane's speed limit where the lane
         starts (the limit of the lane it is on holds at once), at most ``desired``."""
+        return float(self.reference_profile(which, np.array([s_from], dtype=float), desired, brake)[0])
+
+    def reference_profile(self, which: int, s_from: np.ndarray, desired: float, brake: float = REFERENCE_BRAKE,
+                          bends: bool = True) -> np.ndarray:
+        """:meth:`reference_speed` [m/s] at every position ``s_from`` [m] ([m] array, s as in :meth:`project`);
+        without ``bends`` only the lanes' limits count (the speed from which the ego can still slow down to every
+        lower limit by the time its front bumper reaches that lane, where ``s_from`` is its front bumper)."""
         row = int(self.chain_of[which])
         reach = desired * desired / (2.0 * brake) + 1.0  # beyond this no lower speed ahead matters
-        s, kappa = self.curve_s[row], self.curve_kappa[row]
-        bends = (s >= s_from - 1.0) & (s <= s_from + reach)
-        v_bend = np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa[bends], 1e-9))
+        at = np.asarray(s_from, dtype=float)[:, None]
         starts, limits = self.lane_start[row], self.lane_speed[row]
         ends = np.append(starts[1:], np.inf)
-        here = (starts <= s_from) & (ends > s_from)
-        ahead = (starts > s_from) & (starts <= s_from + reach)
-        envelope = np.sqrt(np.concatenate([v_bend, limits[ahead]]) ** 2 +
-                           2.0 * brake * np.maximum(np.concatenate([s[bends], starts[ahead]]) - s_from, 0.0))
-        return float(min(desired, limits[here].min(initial=np.inf), envelope.min(initial=np.inf)))
+        here = np.where((starts <= at) & (ends > at), limits, np.inf).min(axis=1, initial=np.inf)
+        # Lower speeds ahead: the bends within reach (and 1 m behind), the lanes that start within reach.
+        bend_s, kappa = (self.curve_s[row], self.curve_kappa[row]) if bends else (np.zeros(0), np.zeros(0))
+        where = np.concatenate([bend_s, starts])
+        speed = np.concatenate([np.sqrt(CURVE_LAT_ACCEL / np.maximum(kappa, 1e-9)), limits])
+        is_bend = np.arange(where.size) < bend_s.size
+        within = np.where(is_bend, where >= at - 1.0, where > at) & (where <= at + reach)
+        envelope = np.sqrt(speed ** 2 + 2.0 * brake * np.maximum(where - at, 0.0))
+        return np.minimum(np.minimum(desired, here), np.where(within, envelope, np.inf).min(axis=1, initial=np.inf))
 
     def speed_limit(self, which: int, s_from: float, horizon: float) -> float:
         """The lowest speed limit [m/s] of chain ``which``'s lanes over [s_from, s_from + horizon] (inf: none)."""

@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from ...rss.params import PARAM_NAMES
-from ..lanes import CURRENT, LEFT
-from ..road_frame import RoadFrame
+from ..lanes import CURRENT, LEFT, RIGHT, LaneChains
+from ..road_frame import GRID_STEP, RoadFrame
 from ..route_lanes import UNREACHABLE
 from .controllers import IdmParams, VehicleLimits
 from .kernel import KernelSettings, run
@@ -83,12 +83,55 @@ class Vehicles:
 
 
 @dataclass(frozen=True, eq=False)
+class ReferenceProfile:
+    """The ego's reference speed along its path: ``speed[c, g]`` [m/s] with its front bumper on chain c
+    (RIGHT/CURRENT/LEFT) at frame position ``s0 + g·step`` [m] (linear between the points, the end values beyond
+    them; finite everywhere, a missing chain a copy of another), read at the front bumper and ``preview`` [s] at the
+    ego's speed ahead of it, the lower of the two: the ego's desired speed; ``limit[c, g]`` the same from the lanes'
+    speed limits alone (no bends), read at the front bumper: a cap on its speed (docs/planner.md, "The desired
+    speed along the rollout's path")."""
+
+    s0: float
+    step: float
+    speed: np.ndarray  # [3, m]
+    limit: np.ndarray  # [3, m]
+    preview: float
+
+    def __post_init__(self) -> None:
+        for values in (self.speed, self.limit):
+            if values.ndim != 2 or values.shape[0] != 3 or values.shape[1] < 2 or not np.isfinite(values).all():
+                raise ValueError("a reference profile needs finite speeds [3, m >= 2]")
+        if self.limit.shape != self.speed.shape or self.step <= 0.0:
+            raise ValueError("a reference profile's two speeds share one grid of positive step")
+
+    @classmethod
+    def along(cls, chains: LaneChains, front: float, reach: float, desired: float, preview: float
+              ) -> ReferenceProfile:
+        """The profile of ``chains`` (:meth:`.lanes.LaneChains.reference_profile`, at most ``desired`` [m/s]) for
+        the ego's front bumper from ``front`` [m] over ``reach`` [m] (the horizon's and the preview's), on a
+        GRID_STEP grid, read ``preview`` [s] ahead too. A rise of a limit (a faster lane's start) counts one grid
+        step late, so that no point between two grid points reads above the slower lane's limit. A chain that does
+        not exist gets the current chain's profile (never read)."""
+        grid = front + GRID_STEP * np.arange(-1, int(np.ceil((reach + 2.0 * GRID_STEP) / GRID_STEP)) + 1)
+        speed, limit = np.empty((3, grid.size - 1)), np.empty((3, grid.size - 1))
+        for which in (CURRENT, RIGHT, LEFT):
+            if not chains.exists(which):
+                speed[which], limit[which] = speed[CURRENT], limit[CURRENT]
+                continue
+            for out, bends in ((speed, True), (limit, False)):
+                profile = chains.reference_profile(which, grid, desired, bends=bends)
+                out[which] = np.minimum(profile[1:], profile[:-1])
+        return cls(front, GRID_STEP, speed, limit, preview)
+
+
+@dataclass(frozen=True, eq=False)
 class Rollouts:
     """What differs between rollouts. ``ego_chain[r, layer]``: the lane the ego tracks in each layer;
     ``ego_v0[r]`` its desired speed, ``ego_spacing_scale[r]`` the factor on its s0 and T (0.75 when
     accelerating); ``ego_backup[r]``: the emergency backup (lane keep, braking at ``backup_brake``);
     ``agent_chain[r, i]`` each agent's target lane, ``agent_v0[i]`` its desired speed; ``ego_speed_limit`` the
-    road's speed limit [m/s], which the evasive speed-up does not exceed."""
+    road's speed limit [m/s], which the evasive speed-up does not exceed; ``ego_reference``: the reference speed
+    along the ego's path, which caps its desired speed at every step (None: ``ego_v0`` throughout)."""
 
     ego_chain: np.ndarray  # [R, layers] int
     ego_v0: np.ndarray  # [R]
@@ -98,6 +141,7 @@ class Rollouts:
     agent_chain: np.ndarray  # [R, n] int (column 0 unused)
     agent_v0: np.ndarray  # [n]
     ego_speed_limit: float = np.inf
+    ego_reference: ReferenceProfile | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,13 +283,16 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
     idm_of_rollout = _idm_per_rollout(agent_idm, rollouts.ego_spacing_scale, n)
     state = np.array([vehicles.s, vehicles.d, vehicles.heading, vehicles.speed, vehicles.accel, vehicles.curvature],
                      dtype=float)
+    reference = rollouts.ego_reference
     ks = KernelSettings(
         settings.ego_radius, settings.agent_radius, settings.inflation, settings.lane_end_margin,
         ego_end_room(frame, settings.lane_end_margin), settings.ego_idm.s0,
         settings.evasive_headway, settings.evasive_accel, settings.ego_limits.wheelbase, float(rollouts.backup_brake),
         float(rollouts.ego_speed_limit), float(ego_stop_s), float(vehicles.width[1:].max()) if n > 1 else 0.0,
         junction_area.beyond if junction_area is not None else 0.0, rss_following, settings.gap_informed_changes,
-        junction_area is not None, owed_brake_due is not None, settings.ready_wait)
+        junction_area is not None, owed_brake_due is not None, settings.ready_wait, reference is not None,
+        reference.s0 if reference is not None else 0.0, reference.step if reference is not None else 1.0,
+        reference.preview if reference is not None else 0.0)
     gs = GapSettings(settings.gap_speed_gain, settings.preferred_blend, settings.track_speed_gain,
                      settings.track_pos_gain, settings.ego_limits.max_accel, settings.evasive_accel,
                      settings.evasive_extra_speed, settings.commit_time, settings.evasive_speed_up)
@@ -257,7 +304,9 @@ def simulate(frame: RoadFrame, vehicles: Vehicles, rollouts: Rollouts, durations
         rss_table(junction_area.params if junction_area is not None else rss_ego, 1), _c(rollouts.ego_chain, i64),
         _c(rollouts.agent_chain, i64), _c(rollouts.ego_backup, np.bool_), _c(frame.centre, f64),
         _c(frame.slope_grid, f64), _c(frame.extent, f64), _c(frame.end_s, f64), _c(frame.exists, np.bool_),
-        float(frame.s0), held_gap, _c(np.full(n, np.inf) if owed_brake_due is None else owed_brake_due, f64), ks, gs)
+        float(frame.s0), held_gap, _c(np.full(n, np.inf) if owed_brake_due is None else owed_brake_due, f64),
+        _c(reference.speed if reference is not None else np.zeros((3, 2)), f64),
+        _c(reference.limit if reference is not None else np.zeros((3, 2)), f64), ks, gs)
     s, d, heading, speed, chain = vehicle_samples.transpose(1, 2, 0, 3)
     ego_accel, ego_curvature, lead_gap, lead_speed, lead_held_gap, lead_is_car = ego_samples.transpose(1, 2, 0)
     return SimResult(t, layer_end, s, d, heading, speed, ego_accel, ego_curvature, valid, lead_gap, lead_speed,

@@ -36,7 +36,10 @@ class KernelSettings(NamedTuple):
     wheelbase [m], the rollouts' backup brake [m/s²] and speed limit [m/s], the ego's stop line [m] (inf: none), the
     widest agent [m], the junction area's distance beyond the stop line [m]; and whether there are a junction area
     and braking the ego owes. ``ego_end_room`` [m]: what the ego keeps before its own lane's end beyond
-    ``lane_end_margin`` for the lane changes it must make after the next one (:func:`.forward_sim.ego_end_room`)."""
+    ``lane_end_margin`` for the lane changes it must make after the next one (:func:`.forward_sim.ego_end_room`).
+    ``has_reference``: the ego's desired speed is capped along its path by the reference profile on the grid
+    ``reference_s0`` + g·``reference_step`` [m], read ``reference_preview`` [s] ahead too
+    (:class:`.forward_sim.ReferenceProfile`)."""
 
     ego_radius: float
     agent_radius: float
@@ -57,20 +60,26 @@ class KernelSettings(NamedTuple):
     has_junction: bool
     has_owed: bool
     ready_wait: bool
+    has_reference: bool
+    reference_s0: float
+    reference_step: float
+    reference_preview: float
 
 
 @kernel
 def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, idm, v0, limits, pursuit,
         evasive_max_accel, rss_table, rss_ego_row, front_worst_row, junction_row, ego_chain, agent_chain, backup,
-        centre, slope_grid, extent, end_s, exists, frame_s0, held_gap, owed_due, ks, gs):
+        centre, slope_grid, extent, end_s, exists, frame_s0, held_gap, owed_due, reference, reference_limit, ks,
+        gs):
     """Run the prefixes; returns the samples of every rollout, [T+1, 5, R, n] (s, d, heading, speed, chain) and
     [T+1, 6, R] (the ego's acceleration, curvature, leader gap, leader speed, the leader's held gap, whether the
     leader is a car), and per rollout whether the ego never collided and how many steps the barrier held it.
     Tree per layer ``l``: the first ``counts[l]`` entries of ``firsts[l]`` / ``parents[l]``, and ``inverses[l]``
     [R]. Per rollout and vehicle: ``idm`` [fields, R, n], ``v0`` [R, n]; per vehicle: ``limits`` [fields, n],
     ``pursuit`` [3, n] (gain, min, max), ``rss_table`` [n, fields]. ``ks``: :class:`KernelSettings`, ``gs``:
-    :class:`~.lane_change.GapSettings`. (The phases of a step are separate functions: numba's compile time grows
-    faster than linearly with a function's size.)"""
+    :class:`~.lane_change.GapSettings`; ``reference`` / ``reference_limit`` [3, m]: the ego's reference speed and
+    its speed limits' envelope by chain on their grid. (The phases of a step are separate functions: numba's
+    compile time grows faster than linearly with a function's size.)"""
     n_steps, n, R = t.size - 1, length.size, ego_chain.shape[0]
     vehicle_out = np.empty((n_steps + 1, 5, R, n))
     ego_out = np.full((n_steps + 1, 6, R), np.inf)
@@ -115,7 +124,7 @@ def run(t, layer_end, firsts, parents, inverses, counts, state0, length, width, 
                           centres, cell, gaps, lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap,
                           ego_band, barrier_steps, length, width, idm, v0, limits, pursuit, evasive_max_accel,
                           rss_table, rss_ego_row, front_worst_row, junction_row, backup, slope_grid, held_gap,
-                          owed_due, end_s, ks, gs, scratch)
+                          owed_due, end_s, reference, reference_limit, ks, gs, scratch)
         cell, frac = _locate(moved[0], frame_s0, centre.shape[1])
         for g in range(moved.shape[1]):
             for i in range(n):
@@ -242,10 +251,18 @@ def _record(k, recorded, inverse, state, now_chain, lead_gap, lead_speed, free_g
 def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_slope, centres, cell, gaps,
                   lead_gap, lead_speed, free_gap, leader, gap_go, v_go, stop_gap, ego_band, barrier_steps, length,
                   width, idm, v0, limits, pursuit, evasive_max_accel, rss_table, rss_ego_row, front_worst_row,
-                  junction_row, backup, slope_grid, held_gap, owed_due, end_s, ks, gs, scratch):
+                  junction_row, backup, slope_grid, held_gap, owed_due, end_s, reference, reference_limit, ks, gs,
+                  scratch):
     """One step of prefix ``g`` (representative rollout ``rollout``) ending at ``t_end`` [s]: every vehicle's
-    commands and its move, into ``moved`` [fields, G, n]. ``scratch`` [4, n]: room for its temporaries."""
+    commands and its move, into ``moved`` [fields, G, n]. ``scratch`` [4, n]: room for its temporaries. The ego's
+    desired speed is its rollout's, capped by the reference speed where it is now (:func:`_reference_at`), and
+    (but in the evasive speed-up) its speed command by the speed limits' envelope where its front bumper gets to in
+    the step: the IDM slows towards a lower desired speed with a lag (docs/planner.md)."""
     n = length.size
+    ego_v0 = v0[rollout, 0]
+    ego_front = state[0, g, 0] + 0.5 * length[0]
+    if ks.has_reference:
+        ego_v0 = min(ego_v0, _reference_at(reference[now_chain[g, 0]], ego_front, state[3, g, 0], ks))
     s, d, heading, v = state[0, g], state[1, g], state[2, g], state[3, g]
     rss_ego, front_worst, junction = rss_row(rss_ego_row, 0), rss_row(front_worst_row, 0), rss_row(junction_row, 0)
     ell, lane_target, slope, speed_cmd = scratch[0], scratch[1], scratch[2], scratch[3]
@@ -263,7 +280,7 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
         front, rear = gaps[g, 0], gaps[g, 1]
         lc_cmd, barrier, evasive_v0 = lane_change_command(front, rear, front > 0, rear > 0, s, d, heading, v, slope,
                                                           length, width, idm[0, rollout, 0], idm[1, rollout, 0],
-                                                          v0[rollout, 0], gs, rss_ego, rss_table, dt)
+                                                          ego_v0, gs, rss_ego, rss_table, dt)
         # An ego already in the way of the target lane's cars is not held there: they stop for it (leaders).
         hold = barrier and np.abs(d[0] - centres[tracked[g, 0], g, 0]) >= ego_band[g]
         if hold and ks.ready_wait and np.isfinite(end_s[now_chain[g, 0]]):  # wait ready beside the gap
@@ -276,17 +293,18 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
     for i in range(n):
         p = _idm_row(idm, rollout, i)
         ego = i == 0
-        cmd_t = _idm_command(v[i], v0[rollout, i], lead_gap[0, g, i], lead_speed[0, g, i], free_gap[0, g, i],
+        desired = ego_v0 if ego else v0[rollout, i]
+        cmd_t = _idm_command(v[i], desired, lead_gap[0, g, i], lead_speed[0, g, i], free_gap[0, g, i],
                              leader[0, g, i], p, ego, stop_gap[g], dt, ks, rss_ego, front_worst, junction, held_gap)
         cmd_c = cmd_t
         if tracked[g, i] != now_chain[g, i]:  # a car changing lanes also follows the leader in its lane
-            cmd_c = _idm_command(v[i], v0[rollout, i], lead_gap[1, g, i], lead_speed[1, g, i], free_gap[1, g, i],
+            cmd_c = _idm_command(v[i], desired, lead_gap[1, g, i], lead_speed[1, g, i], free_gap[1, g, i],
                                  leader[1, g, i], p, ego, stop_gap[g], dt, ks, rss_ego, front_worst, junction,
                                  held_gap)
         speed_cmd[i] = min(cmd_t, cmd_c)
         if ego and changing:
             # Waiting for a gap keeps room before the end of an ending lane; once going, all of it may be used.
-            cmd_go = _idm_command(v[0], v0[rollout, 0], gap_go[g], v_go[g], free_gap[1, g, 0], leader[1, g, 0], p,
+            cmd_go = _idm_command(v[0], ego_v0, gap_go[g], v_go[g], free_gap[1, g, 0], leader[1, g, 0], p,
                                   ego, stop_gap[g], dt, ks, rss_ego, front_worst, junction, held_gap)
             current_cap = cmd_c if hold else max(cmd_c, cmd_go)
             if evasive:  # the evasive IDM behind the leader in its lane (the waiting one where held)
@@ -297,6 +315,9 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
                                       fast, ego, stop_gap[g], dt, ks, rss_ego, front_worst, junction, held_gap)
                 current_cap = max(current_cap, cmd_ev)
             speed_cmd[0] = min(lc_cmd, current_cap)
+    if ks.has_reference and not evasive:  # at most the limits' envelope where its front bumper gets to
+        speed_cmd[0] = min(speed_cmd[0], _profile_at(reference_limit[now_chain[g, 0]],
+                                                     (ego_front + v[0] * dt - ks.reference_s0) / ks.reference_step))
     if hold:
         barrier_steps[g] += 1
     if ks.has_owed and _owes_braking(s, d, v, t_end, owed_due, length, width, rss_ego, rss_table):
@@ -335,6 +356,24 @@ def _idm_command(v, desired, gap, v_lead, free_gap, leader, p, is_ego, stop_gap,
                             junction.min_lon_gap - ks.junction_beyond)
     return idm_speed_command(v, desired, v if free else v_lead, NO_LEADER_GAP + NO_LEADER_GAP * v if free else gap,
                              p, dt, following)
+
+
+@jitable
+def _reference_at(profile, s_front, v, ks):
+    """[m/s] The ego's reference speed with its front bumper at ``s_front`` [m] at ``v`` [m/s]: ``profile`` [m]
+    (one chain's, on the grid of ``ks``) read there and ``ks.reference_preview`` s ahead at ``v``, the lower."""
+    ahead = s_front + ks.reference_preview * v
+    return min(_profile_at(profile, (s_front - ks.reference_s0) / ks.reference_step),
+               _profile_at(profile, (ahead - ks.reference_s0) / ks.reference_step))
+
+
+@jitable
+def _profile_at(values, at):
+    """``values`` [m] at the fractional index ``at``: linear between the points, the end values beyond them
+    (exactly a point's value where its neighbour is equal)."""
+    at = min(max(at, 0.0), values.size - 1.000001)
+    k = int(at)
+    return values[k] + (values[k + 1] - values[k]) * (at - k)
 
 
 @jitable
