@@ -77,7 +77,7 @@ def _compiled_rss(v1, v2, u1, u2, gap, t1, t2):  # noqa: ANN001, ANN202
 @jit.kernel
 def _compiled_controllers(v, v0, v_lead, gap, floor, idm, heading, steer, limits, d, u, t1, t2, dt):  # noqa
     out = np.empty((11, v.size))
-    p = kernel.IdmRow(idm[0], idm[1], idm[2], idm[3], idm[4], idm[5], idm[6])
+    p = kernel.IdmRow(idm[0], idm[1], idm[2], idm[3], idm[4], idm[5], idm[6], idm[7])
     lim = kernel.LimitsRow(limits[0], limits[1], limits[2], limits[3], limits[4], limits[5], limits[6], limits[7],
                            limits[8])
     for k in range(v.size):
@@ -111,16 +111,18 @@ def test_rss_formulas_agree_compiled_and_vectorised():
     assert np.array_equal(vectorised[~finite], compiled[~finite])
 
 
-def test_controllers_agree_compiled_and_vectorised():
-    """IDM/ACC, pure pursuit, the bicycle model, the lateral RSS test and the RSS following distance; the ego's
-    parameters, and a desired speed of 0 ('stop') in every fifth input."""
+@pytest.mark.parametrize("p", [IdmParams(), IdmParams(accel=2.0, approach_time=1.0)], ids=["idm", "approach"])
+def test_controllers_agree_compiled_and_vectorised(p):
+    """IDM/ACC, pure pursuit, the bicycle model, the lateral RSS test and the RSS following distance; IDM's
+    free-road term and the one that reaches the desired speed at the acceleration limit, and a desired speed of 0
+    ('stop') in every fifth input."""
     rng = np.random.default_rng(5)
     v, v_lead = rng.uniform(0.0, 40.0, N), rng.uniform(-1.0, 40.0, N)
     v0 = np.where(np.arange(N) % 5 == 0, 0.0, rng.uniform(0.0, 40.0, N))
     gap, floor = rng.uniform(0.0, 200.0, N), rng.uniform(0.0, 60.0, N)
     heading, steer = rng.uniform(-0.3, 0.3, N), rng.uniform(-0.8, 0.8, N)
     d, u = rng.uniform(-5.0, 5.0, N), rng.uniform(-2.0, 2.0, N)
-    p, limits, dt = IdmParams(), VehicleLimits(), 0.2
+    limits, dt = VehicleLimits(), 0.2
     p1, p2 = _random_params(rng, N), _random_params(rng, N)
     moved = controllers.bicycle_step(BicycleState(gap, d, heading, v, floor - 2.0, steer * 0.1), v0, steer, limits,
                                      dt, 2.0)

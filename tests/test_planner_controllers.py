@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -28,6 +29,27 @@ def test_free_road_acceleration():
     stop = 0.01 * a_iidm + 0.99 * (a_cah + 1.67 * math.tanh((a_iidm - a_cah) / 1.67))
     assert acc_acceleration(5.0, 0.0, 5.0, FAR, EGO) == pytest.approx(stop, abs=1e-12)
     assert idm_speed_command(0.0, 0.0, 0.0, FAR, EGO, 0.2) == 0.0
+
+
+def test_free_road_term_with_an_approach_time_reaches_the_desired_speed_at_the_acceleration_limit():
+    """min(a, (v0 − v)/τ) below v0 (a 2 m/s², τ 1 s), where IDM's a·(1 − (v/v0)^δ) fades out near v0."""
+    ego = IdmParams(accel=2.0, approach_time=1.0)
+    # 10 of 20 m/s: the limit, 2.0 (IDM: 1.875); 32.7 of 33 m/s: 0.3 (IDM: 2·(1 − (32.7/33)^4) = 0.0717).
+    assert acc_acceleration(10.0, 20.0, 10.0, FAR, ego) == pytest.approx(2.0, abs=1e-5)
+    assert acc_acceleration(32.7, 33.0, 32.7, FAR, ego) == pytest.approx(0.3, abs=1e-6)
+    assert acc_acceleration(32.7, 33.0, 32.7, FAR, IdmParams(accel=2.0)) == pytest.approx(0.0717, abs=1e-4)
+    # Above v0 and behind a close leader it is the IIDM as before.
+    assert acc_acceleration(25.0, 20.0, 25.0, FAR, replace(ego, accel=1.0)) == \
+        pytest.approx(acc_acceleration(25.0, 20.0, 25.0, FAR, EGO), abs=1e-12)
+    assert acc_acceleration(20.0, 30.0, 15.0, 20.0, ego) == \
+        pytest.approx(acc_acceleration(20.0, 30.0, 15.0, 20.0, IdmParams(accel=2.0)), abs=1e-12)
+    # From 22 to 28 m/s in steps of 0.1 s: within 0.1 m/s of 28 after 2 s at 2 m/s² + τ·ln(2/0.1) = 5.0 s (4.9 in
+    # steps; IDM: 15.4 s).
+    for params, expected in ((ego, 4.9), (IdmParams(accel=2.0), 15.4)):
+        v, t = 22.0, 0.0
+        while v < 27.9:
+            v, t = float(idm_speed_command(v, 28.0, v, FAR, params, 0.1)), t + 0.1
+        assert t == pytest.approx(expected, abs=0.05)
 
 
 def test_close_follower_blends_iidm_with_the_constant_acceleration_heuristic():

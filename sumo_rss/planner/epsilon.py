@@ -64,7 +64,11 @@ EGO_ACCEL = 2.0
 # at the centre the ego reached intersection_tls's 9.26 m/s junction lane at 12.3 m/s with the 1.67 m/s² envelope
 # (docs/planner.md "Junctions")
 REFERENCE_PREVIEW = 1.0
-EGO_SIM = SimSettings(ego_idm=IdmParams(accel=EGO_ACCEL), ego_limits=VehicleLimits(max_accel=EGO_ACCEL))
+# [s] the ego's rollouts reach their desired speed at EGO_ACCEL, then close the last (v0 − v) with this time constant
+# (IDM's a·(1 − (v/v0)^4) takes v0/(4a), 4.1 s at 33 m/s: docs/planner.md, "A speed target reached at the limit")
+EGO_APPROACH_TIME = 1.0
+EGO_SIM = SimSettings(ego_idm=IdmParams(accel=EGO_ACCEL, approach_time=EGO_APPROACH_TIME),
+                      ego_limits=VehicleLimits(max_accel=EGO_ACCEL))
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,8 @@
 
 - :func:`acc_acceleration`: Treiber-Kesting ACC (improved IDM + constant-acceleration heuristic), with the port's
   fixes: the heuristic uses the net gap, the braking floor uses the step ``dt`` (so the speed cannot go negative),
-  and a desired speed of 0 means "stop".
+  and a desired speed of 0 means "stop"; optionally (``IdmParams.approach_time``) a free-road term that reaches the
+  desired speed at the acceleration limit instead of IDM's asymptotic approach.
 - :func:`pure_pursuit_steer`: steering towards a look-ahead point.
 - :func:`bicycle_step`: the "ideal steer" kinematic bicycle (rear-axle reference) with acceleration/jerk,
   lateral-acceleration/jerk and steer-angle/rate limits, integrated with RK4.
@@ -40,6 +41,9 @@ class IdmParams:
     hard_brake: float = 5.0  # [m/s²] acceleration floor
     exponent: float = 4.0  # δ
     coolness: float = 0.99  # c of the ACC model
+    # [s] τ > 0: below the desired speed the free-road term is min(a, (v0 − v)/τ), a speed target reached at the
+    # acceleration limit; 0: IDM's a·(1 − (v/v0)^δ), whose time constant near v0 is v0/(a·δ) (4.1 s at 33 m/s)
+    approach_time: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -71,7 +75,10 @@ def acc_acceleration(v: Any, v0: Any, v_lead: Any, gap: Any, p: IdmParams, min_d
     z = s_star / s_net
     stop = v0 < V0_STOP
     v0_safe = select(stop, 1.0, v0)
-    a_free = select(v <= v0_safe, a * (1.0 - (v / v0_safe) ** delta),
+    tau = p.approach_time
+    rising = select(tau > 0.0, np.minimum(a, (v0_safe - v) / np.maximum(tau, 1e-9)),
+                    a * (1.0 - (v / v0_safe) ** delta))
+    a_free = select(v <= v0_safe, rising,
                     -b * (1.0 - (v0_safe / np.maximum(v, 1e-9)) ** (a * delta / b)))
     a_free = select(stop, -b, a_free)
     below = select(z >= 1.0, a * (1.0 - z * z),

@@ -309,7 +309,7 @@ def _step_rollout(g, rollout, dt, t_end, state, moved, tracked, now_chain, lane_
             current_cap = cmd_c if hold else max(cmd_c, cmd_go)
             if evasive:  # the evasive IDM behind the leader in its lane (the waiting one where held)
                 fast = IdmRow(ks.ego_s0, ks.evasive_headway, ks.evasive_accel, p.comfort_brake, p.hard_brake,
-                              p.exponent, p.coolness)
+                              p.exponent, p.coolness, p.approach_time)
                 cmd_ev = _idm_command(v[0], evasive_v0, lead_gap[1, g, 0] if hold else gap_go[g],
                                       lead_speed[1, g, 0] if hold else v_go[g], free_gap[1, g, 0], leader[1, g, 0],
                                       fast, ego, stop_gap[g], dt, ks, rss_ego, front_worst, junction, held_gap)
@@ -421,7 +421,8 @@ def _chain_of_offsets(to_right, to_current, to_left, s, exists, extent):
 
 @jitable
 def _idm_row(idm, r, i):
-    return IdmRow(idm[0, r, i], idm[1, r, i], idm[2, r, i], idm[3, r, i], idm[4, r, i], idm[5, r, i], idm[6, r, i])
+    return IdmRow(idm[0, r, i], idm[1, r, i], idm[2, r, i], idm[3, r, i], idm[4, r, i], idm[5, r, i], idm[6, r, i],
+                  idm[7, r, i])
 
 
 @jitable
