@@ -15,6 +15,7 @@ from ...rss import formulas
 from ...rss.situations import extent_across
 
 LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
+EGO_LEADER_RANGE = 250.0  # [m] the ego's (the planning frame's reach ahead)
 
 
 def hardest_braking(rss_agents: Any) -> Any:
@@ -77,7 +78,7 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                     best = np.inf
                     for q in range(1, n):
                         ds = s[g, q] - s[g, 0]
-                        if 0.0 < ds < LEADER_RANGE + length[q] and offset[chain, g, q] < ego_radius and ds < best:
+                        if 0.0 < ds < EGO_LEADER_RANGE + length[q] and offset[chain, g, q] < ego_radius and ds < best:
                             best, j = ds, q
                 else:
                     for p in range(rank[i] + 1, n):
@@ -89,7 +90,7 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                 if j >= 0:
                     speeds[m, g, i] = v[g, j]
                     ds = s[g, j] - s[g, i]
-                    if 0.0 < ds < LEADER_RANGE + length[j]:
+                    if 0.0 < ds < (EGO_LEADER_RANGE if i == 0 else LEADER_RANGE) + length[j]:
                         gaps[m, g, i], leader[m, g, i] = ds - 0.5 * (length[i] + length[j]), j
     return gaps, speeds, leader
 
