@@ -201,9 +201,9 @@ def test_shared_prefixes_simulate_like_separate_rollouts(highway):
 
 
 def test_leader_search_matches_the_pairwise_definition():
-    """Sorted leader search = the nearest car whose centre is ahead (within 120 m + its length, the ego's within
-    250 m + its length) and inside the follower's band of the lane it looks at (ego radius 2.2 m, agents 1.25 m),
-    on random traffic in 3 lanes."""
+    """Sorted leader search = the nearest car whose centre is ahead (within 120 m + its length; the ego's in its
+    own lane within 250 m + its length) and inside the follower's band of the lane it looks at (ego radius 2.2 m,
+    agents 1.25 m), on random traffic in 3 lanes."""
     rng = np.random.default_rng(7)
     G, n = 12, 15
     lane = rng.integers(0, 3, (G, n))
@@ -216,14 +216,14 @@ def test_leader_search_matches_the_pairwise_definition():
     looks = np.stack([rng.integers(0, 3, (G, n)), lane])
     gaps, speeds, leaders = leaders_ahead(s, v, np.abs(d - centres), looks, length, (1.25, 2.2))
     radius = np.where(np.arange(n) == 0, 2.2, 1.25)  # column 0 is the ego
-    reach = np.where(np.arange(n) == 0, 250.0, 120.0)
     assert (LEADER_RANGE, EGO_LEADER_RANGE) == (120.0, 250.0)
     for m in range(2):
         for r in range(G):
             for i in range(n):
                 ds = s[r] - s[r, i]
                 band = np.abs(d[r] - centres[looks[m, r, i], r]) < radius[i]
-                ok = (ds > 0.0) & (ds < reach[i] + length) & band
+                reach = 250.0 if i == 0 and looks[m, r, i] == CURRENT else 120.0
+                ok = (ds > 0.0) & (ds < reach + length) & band
                 if not ok.any():
                     assert np.isinf(gaps[m, r, i]) and leaders[m, r, i] == n
                     continue

@@ -13,9 +13,12 @@ import numpy as np
 from ...jit import jitable, kernel, select
 from ...rss import formulas
 from ...rss.situations import extent_across
+from ..lanes import CURRENT
 
 LEADER_RANGE = 120.0  # [m] leader search range (also the leader cost's range)
-EGO_LEADER_RANGE = 250.0  # [m] the ego's (the planning frame's reach ahead)
+# [m] the ego's in its own lane (the planning frame's reach ahead): RSS's safe distance at highway speeds is longer
+# than LEADER_RANGE (docs/planner.md, "A speed target reached at the limit, and the ego's leader beyond 120 m")
+EGO_LEADER_RANGE = 250.0
 
 
 def hardest_braking(rss_agents: Any) -> Any:
@@ -36,7 +39,8 @@ def leaders_ahead(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nd
                   length: np.ndarray, radii: tuple[float, float], ego_band: np.ndarray | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each vehicle's leader on each of the ``lanes`` [m, G, n] it looks at: the nearest vehicle ahead (centre
-    further along s, within LEADER_RANGE + its length) inside the lane's band, |d - centre(s)| < the follower's
+    further along s, within LEADER_RANGE + its length; the ego's in the CURRENT chain within EGO_LEADER_RANGE +
+    its length) inside the lane's band, |d - centre(s)| < the follower's
     search radius (``radii`` = (agents', the ego's); the ego is column 0). To the agents the ego is in a lane's
     band where |d - centre(s)| < ``ego_band`` [G] [m] (default: the agents' radius): a body that sticks out
     into their lane is in their way. An agent's leader is the first vehicle in the lane's band after it in the
@@ -78,7 +82,8 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                     best = np.inf
                     for q in range(1, n):
                         ds = s[g, q] - s[g, 0]
-                        if 0.0 < ds < EGO_LEADER_RANGE + length[q] and offset[chain, g, q] < ego_radius and ds < best:
+                        reach = EGO_LEADER_RANGE if chain == CURRENT else LEADER_RANGE
+                        if 0.0 < ds < reach + length[q] and offset[chain, g, q] < ego_radius and ds < best:
                             best, j = ds, q
                 else:
                     for p in range(rank[i] + 1, n):
@@ -90,7 +95,7 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                 if j >= 0:
                     speeds[m, g, i] = v[g, j]
                     ds = s[g, j] - s[g, i]
-                    if 0.0 < ds < (EGO_LEADER_RANGE if i == 0 else LEADER_RANGE) + length[j]:
+                    if 0.0 < ds < (EGO_LEADER_RANGE if i == 0 and chain == CURRENT else LEADER_RANGE) + length[j]:
                         gaps[m, g, i], leader[m, g, i] = ds - 0.5 * (length[i] + length[j]), j
     return gaps, speeds, leader
 
