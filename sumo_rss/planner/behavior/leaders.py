@@ -80,9 +80,9 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                 j = -1
                 if i == 0:
                     best = np.inf
+                    reach = EGO_LEADER_RANGE if chain == CURRENT else LEADER_RANGE
                     for q in range(1, n):
                         ds = s[g, q] - s[g, 0]
-                        reach = EGO_LEADER_RANGE if chain == CURRENT else LEADER_RANGE
                         if 0.0 < ds < reach + length[q] and offset[chain, g, q] < ego_radius and ds < best:
                             best, j = ds, q
                 else:
