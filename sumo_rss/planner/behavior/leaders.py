@@ -77,10 +77,10 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
         for m in range(looks):
             for i in range(n):
                 chain = lanes[m, g, i]
+                reach = EGO_LEADER_RANGE if i == 0 and chain == CURRENT else LEADER_RANGE
                 j = -1
                 if i == 0:
                     best = np.inf
-                    reach = EGO_LEADER_RANGE if chain == CURRENT else LEADER_RANGE
                     for q in range(1, n):
                         ds = s[g, q] - s[g, 0]
                         if 0.0 < ds < reach + length[q] and offset[chain, g, q] < ego_radius and ds < best:
@@ -95,7 +95,7 @@ def find_leaders(s: np.ndarray, v: np.ndarray, offset: np.ndarray, lanes: np.nda
                 if j >= 0:
                     speeds[m, g, i] = v[g, j]
                     ds = s[g, j] - s[g, i]
-                    if 0.0 < ds < (EGO_LEADER_RANGE if i == 0 and chain == CURRENT else LEADER_RANGE) + length[j]:
+                    if 0.0 < ds < reach + length[j]:
                         gaps[m, g, i], leader[m, g, i] = ds - 0.5 * (length[i] + length[j]), j
     return gaps, speeds, leader
 
